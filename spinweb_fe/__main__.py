@@ -1,0 +1,5 @@
+import sys
+
+from spinweb_fe.cli import main
+
+sys.exit(main())

@@ -1,0 +1,372 @@
+"""Case files: TOML -> validated, frozen dataclasses.
+
+All defaults live in ``SCHEMA`` below and nowhere else. Every physical value is in SI
+units. Unknown keys and missing required keys raise :class:`InputError` naming the
+file, the dotted key and the reason (the CLI turns that into exit code 2).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from spinweb_fe.errors import InputError
+
+REQUIRED = object()  # marker: the key has no default
+
+TOPOLOGIES = ("quadquad", "tritri", "trihex", "quadtri", "quadhex")
+WEB_FOLDS = ("star", "flat")
+TETHER_FOLDS = ("straight", "coiled")
+WRAPS = ("trailing", "leading")
+SPINS = ("all", "hub")
+LAWS = ("free", "torque_feedback", "spin_ramp", "constant_torque")
+
+
+@dataclass(frozen=True)
+class Field:
+    """One case key: its type, default, and check.
+
+    kind: 'float' | 'int' | 'str' | 'bool'; check: 'pos' (> 0), 'nonneg' (>= 0),
+    'frac' (0 < x <= 1), a tuple of allowed strings, or None.
+    """
+
+    kind: str
+    default: Any = REQUIRED
+    check: Any = None
+    unit: str = ""
+    doc: str = ""
+
+
+F = Field
+SCHEMA: dict[str, dict[str, Field]] = {
+    "web": {
+        "topology": F("str", "quadquad", TOPOLOGIES, "", "web/mesh topology"),
+        "side": F("float", 100.0, "pos", "m", "web side S"),
+        "mesh_width": F("float", 2.5, "pos", "m", "mesh width t (cable spacing)"),
+        "elements_per_segment": F("int", 1, "pos", "", "cable elements between two mesh nodes"),
+        "areal_density": F("float", None, "pos", "kg/m^2",
+                           "if set, the cable area is derived from it (see docs/mesh.md)"),
+        "hub_cutout": F("float", None, "nonneg", "m",
+                        "half-width of the central square removed for the hub (default: "
+                        "smallest mesh line at or outside the hub radius)"),
+    },
+    "tethers": {
+        "count": F("int", 4, "pos", "", "number of radial tethers n"),
+        "length": F("float", 50.0, "pos", "m", "tether length H"),
+        "elements": F("int", 50, "pos", "", "elements per tether"),
+    },
+    "cable": {
+        "youngs_modulus": F("float", 180e9, "pos", "Pa", "Young's modulus E"),
+        "density": F("float", 1540.0, "pos", "kg/m^3", "cable density rho"),
+        "area": F("float", 1.025e-5, "pos", "m^2", "cross-section area A"),
+        "damping_ratio": F("float", 0.0, "nonneg", "", "axial damping, fraction of critical"),
+    },
+    "tip_mass": {
+        "mass": F("float", 10.0, "nonneg", "kg", "point mass at each web corner / tether tip"),
+    },
+    "hub": {
+        "radius": F("float", 6.3, "pos", "m", "hub radius r0"),
+        "mass": F("float", 100.0, "pos", "kg", "hub mass"),
+        "inertia": F("float", None, "pos", "kg m^2", "hub inertia (default mass*radius^2)"),
+        "friction": F("float", 0.0, "nonneg", "", "Coulomb coefficient of cable-hub contact"),
+    },
+    "fold": {
+        "pattern": F("str", None, WEB_FOLDS + TETHER_FOLDS, "",
+                     "web: star | flat; tethers: straight | coiled (default star / coiled)"),
+        "wrap": F("str", "trailing", WRAPS, "", "coil direction relative to the spin"),
+    },
+    "initial": {
+        "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),
+        "spin": F("str", "all", SPINS, "", "all: hub and web spin; hub: only the hub"),
+    },
+    "control": {
+        "law": F("str", "free", LAWS, "", "hub torque law"),
+        "M0": F("float", None, "finite", "N m", "torque_feedback: M = M0 (1 - omega/omega0)"),
+        "omega0": F("float", None, "nonzero", "rad/s", "torque_feedback reference rate"),
+        "omega_max": F("float", None, "finite", "rad/s", "spin_ramp final rate"),
+        "ramp_time": F("float", None, "pos", "s", "spin_ramp duration"),
+        "torque": F("float", None, "finite", "N m", "constant_torque value"),
+    },
+    "time": {
+        "end": F("float", REQUIRED, "pos", "s", "end time"),
+        "cfl": F("float", 0.5, "frac", "", "fraction of the critical step L0/c"),
+        "dt": F("float", None, "pos", "s", "optional cap on the time step"),
+    },
+    "output": {
+        "history_dt": F("float", 1e-3, "pos", "s", "interval of scalar histories"),
+        "frame_dt": F("float", 0.05, "nonneg", "s", "interval of VTU frames (0 = none)"),
+        "directory": F("str", None, None, "", "result folder, relative to the case file"),
+    },
+}
+TOP_KEYS = {"title": F("str", "", None, "", "free text")}
+LAW_KEYS = {"free": (), "torque_feedback": ("M0", "omega0"),
+            "spin_ramp": ("omega_max", "ramp_time"), "constant_torque": ("torque",)}
+
+
+def _table_class(name, fields):
+    cls = dataclasses.make_dataclass(
+        name.capitalize() + "Config",
+        [(k, Any, dataclasses.field(default=None)) for k in fields],
+        frozen=True)
+    cls.__doc__ = f"The [{name}] table (SI units)."
+    return cls
+
+
+TABLE_CLASSES = {name: _table_class(name, fields) for name, fields in SCHEMA.items()}
+
+
+@dataclass(frozen=True)
+class Case:
+    """A validated case. ``web`` or ``tethers`` is None (exactly one is set).
+
+    ``source`` is the case file path (or '<string>'); ``raw`` is the resolved nested dict.
+    """
+
+    title: str
+    web: Any
+    tethers: Any
+    cable: Any
+    tip_mass: Any
+    hub: Any
+    fold: Any
+    initial: Any
+    control: Any
+    time: Any
+    output: Any
+    source: str = "<string>"
+
+    @property
+    def scene(self) -> str:
+        """'web' or 'tethers'."""
+        return "web" if self.web is not None else "tethers"
+
+    @property
+    def folder(self) -> Path:
+        return Path(self.source).parent if self.source != "<string>" else Path.cwd()
+
+    def resolve_path(self, p) -> Path:
+        """A path from the case, relative to the case file's folder."""
+        p = Path(p)
+        return p if p.is_absolute() else self.folder / p
+
+    def to_dict(self) -> dict:
+        out = {"title": self.title}
+        for name in SCHEMA:
+            tbl = getattr(self, name)
+            if tbl is not None:
+                out[name] = {k: v for k, v in dataclasses.asdict(tbl).items() if v is not None}
+        return out
+
+    def to_toml(self) -> str:
+        return dumps_toml(self.to_dict())
+
+    def with_updates(self, **tables) -> "Case":
+        """A copy with some tables replaced by dicts of overrides (validated again)."""
+        raw = self.to_dict()
+        for name, upd in tables.items():
+            raw.setdefault(name, {}).update(upd)
+        return validate(raw, self.source)
+
+
+def _fmt(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("nan" if v != v else ("inf" if v > 0 else "-inf"))
+    return repr(v)
+
+
+def dumps_toml(d: dict) -> str:
+    """Serialise a two-level dict of scalars as TOML text."""
+    lines = [f"{k} = {_fmt(v)}" for k, v in d.items() if not isinstance(v, dict)]
+    for k, v in d.items():
+        if isinstance(v, dict):
+            lines += ["", f"[{k}]"] + [f"{kk} = {_fmt(vv)}" for kk, vv in v.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _suggest(key, valid):
+    near = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.5)
+    return f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(sorted(valid))})"
+
+
+def _coerce(src, dotted, field, value):
+    kind = field.kind
+    if kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(src, dotted, f"expected a number, got {type(value).__name__} {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise InputError(src, dotted, f"must be finite, got {value}")
+    elif kind == "int":
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise InputError(src, dotted, f"expected an integer, got {value!r}")
+    elif kind == "str":
+        if not isinstance(value, str):
+            raise InputError(src, dotted, f"expected a string, got {value!r}")
+    chk = field.check
+    if isinstance(chk, tuple):
+        if value not in chk:
+            raise InputError(src, dotted, f"unknown value '{value}'{_suggest(value, chk)}")
+    elif chk == "pos" and not value > 0:
+        raise InputError(src, dotted, f"must be > 0 ({field.unit or 'dimensionless'}), got {value}")
+    elif chk == "nonneg" and not value >= 0:
+        raise InputError(src, dotted, f"must be >= 0, got {value}")
+    elif chk == "frac" and not 0 < value <= 1:
+        raise InputError(src, dotted, f"must be in (0, 1], got {value}")
+    elif chk == "nonzero" and value == 0:
+        raise InputError(src, dotted, "must not be zero")
+    return value
+
+
+def validate(raw: dict, source: str = "<string>") -> Case:
+    """Check a nested dict against SCHEMA and the cross-key rules; return a Case."""
+    src = str(source)
+    if not isinstance(raw, dict):
+        raise InputError(src, "", "the case must be a TOML table")
+    valid_top = set(SCHEMA) | set(TOP_KEYS)
+    for key in raw:
+        if key not in valid_top:
+            raise InputError(src, key, f"unknown key{_suggest(key, valid_top)}")
+    scenes = [s for s in ("web", "tethers") if s in raw]
+    if len(scenes) != 1:
+        why = "both [web] and [tethers] given" if scenes else "neither [web] nor [tethers] given"
+        raise InputError(src, "web|tethers", f"exactly one scene table is needed: {why}")
+    scene = scenes[0]
+    title = _coerce(src, "title", TOP_KEYS["title"], raw.get("title", ""))
+    tables = {}
+    for name, fields in SCHEMA.items():
+        given = raw.get(name)
+        if given is None:
+            if name in ("web", "tethers"):
+                tables[name] = None
+                continue
+            given = {}
+        if not isinstance(given, dict):
+            raise InputError(src, name, f"must be a table [{name}], got {given!r}")
+        for key in given:
+            if key not in fields:
+                raise InputError(src, f"{name}.{key}", f"unknown key{_suggest(key, fields)}")
+        values = {}
+        for key, field in fields.items():
+            dotted = f"{name}.{key}"
+            if key in given:
+                values[key] = _coerce(src, dotted, field, given[key])
+            elif field.default is REQUIRED:
+                raise InputError(src, dotted, "missing required key")
+            else:
+                values[key] = field.default
+        tables[name] = values
+    _cross_check(src, scene, raw, tables)
+    kwargs = {n: (None if v is None else TABLE_CLASSES[n](**v)) for n, v in tables.items()}
+    return Case(title=title, source=src, **kwargs)
+
+
+def _cross_check(src, scene, raw, t):
+    fold = t["fold"]
+    if fold["pattern"] is None:
+        fold["pattern"] = "star" if scene == "web" else "coiled"
+    allowed = WEB_FOLDS if scene == "web" else TETHER_FOLDS
+    if fold["pattern"] not in allowed:
+        raise InputError(src, "fold.pattern",
+                         f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
+    hub = t["hub"]
+    if hub["inertia"] is None:
+        hub["inertia"] = hub["mass"] * hub["radius"] ** 2
+    law = t["control"]["law"]
+    for key in LAW_KEYS[law]:
+        if t["control"][key] is None:
+            raise InputError(src, f"control.{key}", f"required by control.law = '{law}'")
+    if scene == "web":
+        web = t["web"]
+        if web["mesh_width"] > web["side"] / 2:
+            raise InputError(src, "web.mesh_width",
+                             f"{web['mesh_width']} m is more than half the side {web['side']} m")
+        if hub["radius"] >= web["side"] / 2:
+            raise InputError(src, "hub.radius",
+                             f"hub radius {hub['radius']} m does not fit in a web of side {web['side']} m")
+        if web["areal_density"] is not None:
+            if "area" in raw.get("cable", {}):
+                raise InputError(src, "cable.area",
+                                 "give either cable.area or web.areal_density, not both")
+            from meshgen.flat import area_from_areal_density
+            t["cable"]["area"] = area_from_areal_density(
+                web["topology"], web["areal_density"], web["mesh_width"], t["cable"]["density"])
+    else:
+        if t["output"]["frame_dt"] and t["output"]["frame_dt"] < 0:
+            raise InputError(src, "output.frame_dt", "must be >= 0")
+    if t["time"]["end"] < t["output"]["history_dt"]:
+        raise InputError(src, "output.history_dt",
+                         f"{t['output']['history_dt']} s is longer than time.end {t['time']['end']} s")
+
+
+def parse_set(arg: str) -> tuple[list[str], Any]:
+    """Parse one ``--set a.b=value`` override; the value uses TOML syntax (bare words are strings)."""
+    if "=" not in arg:
+        raise InputError("--set", arg, "expected key=value")
+    key, text = arg.split("=", 1)
+    key = key.strip()
+    parts = key.split(".")
+    if not key or any(not p for p in parts):
+        raise InputError("--set", key, "empty key")
+    try:
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text.strip()
+    return parts, value
+
+
+def apply_overrides(raw: dict, sets) -> dict:
+    for arg in sets or ():
+        parts, value = parse_set(arg)
+        node = raw
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise InputError("--set", arg, f"'{p}' is not a table")
+        node[parts[-1]] = value
+    return raw
+
+
+def load(path, sets=()) -> Case:
+    """Read, override and validate a case file.
+
+    Parameters
+    ----------
+    path : str or Path
+        TOML case file.
+    sets : iterable of str
+        ``key=value`` overrides (TOML value syntax), applied before validation.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "", "no such file")
+    text = path.read_bytes()
+    if not text.strip():
+        raise InputError(path, "", "the file is empty")
+    try:
+        raw = tomllib.loads(text.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(path, "", "not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    raw = apply_overrides(raw, sets)
+    return validate(raw, str(path))
+
+
+def loads(text: str, sets=()) -> Case:
+    """Validate a case given as TOML text (tests, notebooks)."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError("<string>", "", f"TOML syntax error: {exc}") from None
+    return validate(apply_overrides(raw, sets))

@@ -1,0 +1,66 @@
+"""The ``spinweb`` command line: one module per subcommand, ``main(argv) -> int``.
+
+Each subcommand module defines ``add_parser(subparsers)`` (cheap: no heavy imports) and
+``run(args) -> int``. Exit codes follow CONTRACT.md: 0 success, 2 invalid input (one
+line naming file, key and reason), 1 run-time failure (time and cause).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from spinweb_fe import __version__
+from spinweb_fe.errors import InputError, RunError
+
+COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "info")
+log = logging.getLogger("spinweb")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own errors: one line, exit 2
+        raise InputError(self.prog, "", message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="spinweb", description=__doc__.splitlines()[0],
+                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"spinweb {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name in COMMANDS:
+        mod = importlib.import_module(f"spinweb_fe.cli.{name}")
+        p = mod.add_parser(sub)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run the CLI; returns the exit code instead of exiting."""
+    try:
+        args = build_parser().parse_args(argv)
+    except InputError as exc:
+        print(f"spinweb: error: {exc}", file=sys.stderr)
+        return 2
+    except SystemExit as exc:  # --help / --version
+        return int(exc.code or 0)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="%(message)s", stream=sys.stderr, force=True)
+    try:
+        return int(args._run(args) or 0)
+    except InputError as exc:
+        print(f"spinweb: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"spinweb: run failed: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"spinweb: run failed: I/O error: {exc}", file=sys.stderr)
+        return 1
+
+
+def main_exit():  # console-script entry point
+    sys.exit(main())

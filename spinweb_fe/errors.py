@@ -1,0 +1,40 @@
+"""Exceptions that the command line turns into exit codes (see CONTRACT.md)."""
+
+
+class InputError(Exception):
+    """Invalid user input: case file, argument or mesh. The CLI exits with code 2.
+
+    Parameters
+    ----------
+    source : str
+        The file (or argument) at fault.
+    key : str
+        Dotted key inside the source, or '' when the whole source is at fault.
+    reason : str
+        What is wrong, in one line.
+    """
+
+    def __init__(self, source, key, reason):
+        self.source = str(source)
+        self.key = key
+        self.reason = reason
+        where = f"{self.source}: {key}" if key else self.source
+        super().__init__(f"{where}: {reason}")
+
+
+class RunError(Exception):
+    """A run-time failure (instability, I/O). The CLI exits with code 1.
+
+    Parameters
+    ----------
+    time : float or None
+        Simulated time [s] at which the run stopped.
+    cause : str
+        What happened.
+    """
+
+    def __init__(self, cause, time=None):
+        self.time = time
+        self.cause = cause
+        msg = cause if time is None else f"stopped at t = {time:.6g} s: {cause}"
+        super().__init__(msg)
