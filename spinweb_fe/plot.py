@@ -1,0 +1,73 @@
+"""The paper's four-panel figure: arm length L, arm angle phi, omega_centre, omega_tip."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from spinweb_fe.errors import InputError
+
+
+def load_for_plot(path):
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "", "no such file")
+    try:
+        with h5py.File(path, "r") as h5:
+            if "history" not in h5:
+                raise InputError(path, "history", "no /history group in this file")
+            h = {k: h5["history"][k][()] for k in h5["history"]}
+            label = h5.attrs.get("model", "")
+    except OSError as exc:
+        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
+    name = path.parent.name or path.stem
+    label = f"{name} ({label})" if label else name
+    return h, label
+
+
+def four_panel(files, out, labels=None, arm=0, title=None):
+    """Overlay the histories of several result files on the four panels and save ``out``.
+
+    Parameters
+    ----------
+    files : list of path
+        results.h5 / analytic.h5 files.
+    arm : int
+        Which arm's L, phi and omega_tip to draw (all arms move alike in symmetric runs).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    panels = [("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
+              ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]")]
+    for i, f in enumerate(files):
+        h, label = load_for_plot(f)
+        if labels:
+            label = labels[i]
+        t = h["time"]
+        for ax, (key, ylab) in zip(axes.flat, panels):
+            if key not in h:
+                continue
+            y = h[key]
+            if y.ndim == 2:
+                y = y[:, min(arm, y.shape[1] - 1)]
+            ax.plot(t, y, label=label, lw=1.2)
+            ax.set_ylabel(ylab)
+    for ax in axes[1]:
+        ax.set_xlabel("t [s]")
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return Path(out)

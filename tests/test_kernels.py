@@ -1,0 +1,117 @@
+"""Element and step kernels against closed forms (STYLE.md: stretched chain, compressed chain,
+rigid rotation, force balance)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from spinweb_fe import kernels
+
+EA = 1.845e6
+
+
+def chain(n_el, stretch):
+    """Straight chain along x of n_el elements of rest length 1 m, uniformly stretched."""
+    pos = np.zeros((n_el + 1, 3))
+    pos[:, 0] = np.arange(n_el + 1) * (1.0 + stretch)
+    nodes = np.array([[i, i + 1] for i in range(n_el)], dtype=np.int64)
+    return pos, nodes, np.ones(n_el), np.full(n_el, EA), np.zeros(n_el)
+
+
+def forces(pos, nodes, rest, ea, cd, vel=None):
+    f = np.zeros_like(pos)
+    t = np.zeros(len(nodes))
+    vel = np.zeros_like(pos) if vel is None else vel
+    se, tmax, p = kernels.eval_elements(pos, vel, nodes, rest, ea, cd, f, t, True)
+    return f, t, se, tmax, p
+
+
+def test_stretched_chain_end_forces_and_zero_interior():
+    eps = 1e-3
+    f, t, se, tmax, _ = forces(*chain(10, eps))
+    np.testing.assert_allclose(t, EA * eps, rtol=1e-12)
+    np.testing.assert_allclose(f[0], [EA * eps, 0, 0], rtol=1e-12)  # pulled towards the chain
+    np.testing.assert_allclose(f[-1], [-EA * eps, 0, 0], rtol=1e-12)
+    assert np.max(np.abs(f[1:-1])) < 1e-9 * EA * eps
+    assert se == pytest.approx(10 * 0.5 * EA * eps**2, rel=1e-12)
+    assert tmax == pytest.approx(EA * eps, rel=1e-12)
+
+
+def test_compressed_and_zero_length_chain_carry_nothing():
+    for stretch in (-1e-3, -1.0):  # shortened, and fully gathered (zero length)
+        f, t, se, _, _ = forces(*chain(5, stretch))
+        assert np.all(f == 0) and np.all(t == 0) and se == 0
+
+
+def test_rigid_rotation_gives_zero_strain():
+    rng = np.random.default_rng(1)
+    pos, nodes, rest, ea, cd = chain(6, 0.0)
+    pos = pos + rng.normal(size=(1, 3)) * 0
+    a = 0.7
+    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    f, t, se, _, _ = forces(pos @ R.T + [3.0, -2.0, 1.0], nodes, rest, ea, cd)
+    assert np.max(np.abs(t)) < 1e-6 and se < 1e-12
+
+
+def test_internal_forces_sum_to_zero_and_have_no_moment():
+    rng = np.random.default_rng(2)
+    pos = rng.normal(size=(30, 3)) * 3
+    nodes = rng.integers(0, 30, size=(80, 2))
+    nodes = nodes[nodes[:, 0] != nodes[:, 1]]
+    rest = np.full(len(nodes), 1.0)
+    cd = np.full(len(nodes), 50.0)
+    vel = rng.normal(size=(30, 3))
+    f, t, *_ = forces(pos, nodes, rest, np.full(len(nodes), EA), cd, vel)
+    scale = np.abs(t).max()
+    assert np.abs(f.sum(axis=0)).max() < 1e-9 * scale
+    assert np.abs(np.cross(pos, f).sum(axis=0)).max() < 1e-8 * scale * 3
+
+
+def test_damping_acts_only_in_tension_and_dissipates():
+    pos, nodes, rest, ea, _ = chain(1, 1e-3)
+    vel = np.zeros_like(pos)
+    vel[1, 0] = 2.0  # elongating at 2 m/s
+    cd = np.array([100.0])
+    f, t, se, _, p = forces(pos, nodes, rest, ea, cd, vel)
+    assert t[0] == pytest.approx(EA * 1e-3 + 200.0)
+    assert p == pytest.approx(200.0 * 2.0)
+    pos2, *_ = chain(1, -1e-3)  # slack: no damping force either
+    f, t, *_ = forces(pos2, nodes, rest, ea, cd, vel)
+    assert t[0] == 0.0
+
+
+def test_contact_impulse_is_radial_and_keeps_node_outside():
+    pos = np.array([[1.0, 0.0, 0.0]])
+    vel = np.array([[-3.0, 2.0, 0.0]])
+    m = np.array([2.0])
+    lz0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0])
+    w, diss = kernels.apply_contact(pos, vel, np.zeros((1, 3)), m, np.array([0]), 1.0, 0.0, 10.0,
+                                    0.0, 0.0, 0.1)
+    p1 = pos[0] + 0.1 * vel[0]
+    assert math.hypot(p1[0], p1[1]) == pytest.approx(1.0, rel=1e-12)
+    assert m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) == pytest.approx(lz0, rel=1e-14)
+    assert w == 0.0 and diss > 0
+
+
+def test_contact_friction_moment_goes_to_the_hub():
+    pos = np.array([[1.0, 0.0, 0.0]])
+    vel = np.array([[-3.0, 2.0, 0.0]])
+    m = np.array([2.0])
+    j, w0 = 10.0, 0.5
+    L0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w0
+    w, diss = kernels.apply_contact(pos, vel, np.zeros((1, 3)), m, np.array([0]), 1.0, 0.3, j, w0,
+                                    0.0, 0.1)
+    L1 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w
+    assert L1 == pytest.approx(L0, rel=1e-14)
+    assert w > w0 and diss > 0  # the sliding node drags the hub forward and loses energy
+
+
+@pytest.mark.parametrize("law,params,expect", [
+    (kernels.LAW_FREE, [0.0], (False, 0.0)),
+    (kernels.LAW_FEEDBACK, [100.0, 4.0, 0.0], (False, 50.0)),
+    (kernels.LAW_CONSTANT, [7.0, 0.0], (False, 7.0)),
+    (kernels.LAW_RAMP, [10.0, 4.0, 0.0], (True, 5.0)),
+])
+def test_control_laws(law, params, expect):
+    assert kernels.eval_control(law, np.array(params), 2.0, 2.0) == expect
