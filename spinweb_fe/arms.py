@@ -1,14 +1,24 @@
 """Per-arm measures of the FE state, defined as in the analytical model.
 
-For each arm (tether) with root on the hub rim at hub-frame angle theta_R and tip at p:
-- uncoiled (the straight root-to-tip chord leaves the hub outwards): L = |p - R|,
-  phi = angle of p - R from the outward radial at R, counter-clockwise positive;
-- coiled over a wound angle alpha (the free part leaves the rim tangentially at the
-  departure point D): L = sqrt(|p|^2 - r0^2) (tangent length from D to the tip),
-  phi = -(pi/2 + alpha) for a trailing coil (wound clockwise from the root), +(pi/2 + alpha)
-  for a leading one. alpha is tracked continuously in time, so several turns and re-coiling
-  the other way are followed.
+Each arm (tether) has a root point R on the hub rim (hub-frame angle theta_R), a tip node,
+and a *spine*: for every arm-coordinate level from the root to the tip, the outermost node(s)
+of the flat web at that level (a tether: all its nodes; a star-folded web arm: its two
+boundary edges). At each history row:
+
+- wound length w = arm coordinate (minus the root's) of the last spine level that is still,
+  together with every level before it, on the hub (planar radius <= r0 (1 + 1e-3));
+  the wrap sense s = +1 (trailing: the coil runs clockwise from its first level) or -1;
+- the departure point D is that last wound spine node; the wound angle alpha and L are
+  refined with the tangent from the tip to the rim (L = sqrt(|p|^2 - r0^2), exact for a
+  straight taut free part, continuous in time) whenever that agrees with D to within two
+  spine levels, else alpha = w / r0 and L = |tip - D|;
+- phi = -s (pi/2 + alpha) while wound (the analytical model's coiled branch,
+  |phi| = pi/2 + alpha); otherwise the angle of (tip - R) from the outward radial at R,
+  counter-clockwise positive;
 - omega_tip = (p x v)_z / |p|^2: the rate of the tip's polar angle about the hub axis.
+
+Measuring the wound part by contact (not by the tip's angle) stays right when a slack
+coil slides over a frictionless hub.
 """
 
 from __future__ import annotations
@@ -17,69 +27,111 @@ import math
 
 import numpy as np
 
+CONTACT_TOL = 1e-3  # relative radius tolerance for "on the hub"
+
+
+def arm_probes(mesh):
+    """Probe nodes of the arm measures: tips first, then the spine of each arm.
+
+    Returns
+    -------
+    probes : (p,) int64          node indices (tips are probes[:n_arms])
+    spine_arm : (p - n,) int64   arm of each spine probe
+    spine_level : (p - n,) int64 level index (0 = root level) of each spine probe
+    spine_coord : (p - n,) float arm coordinate of each spine probe, minus the root's [m]
+    """
+    tips = np.asarray(mesh.node_sets["tips"], dtype=np.int64)
+    n_arms = mesh.n_arms
+    arm, coord = mesh.node_arm, mesh.node_arm_coord
+    ref = mesh.node_ref
+    reach = np.max(np.abs(ref[:, :2]), axis=1)
+    s_idx, s_arm, s_lev, s_coord = [], [], [], []
+    if n_arms == len(tips):
+        for k in range(n_arms):
+            nodes = np.flatnonzero((arm == k) & (coord >= mesh.arm_root_coord - 1e-9))
+            levels = np.unique(np.round(coord[nodes], 9))
+            for j, lev in enumerate(levels):
+                group = nodes[np.abs(coord[nodes] - lev) < 1e-9]
+                outer = group[reach[group] >= reach[group].max() - 1e-9]
+                s_idx += list(outer)
+                s_arm += [k] * len(outer)
+                s_lev += [j] * len(outer)
+                s_coord += [lev - mesh.arm_root_coord] * len(outer)
+    probes = np.concatenate([tips, np.asarray(s_idx, dtype=np.int64)])
+    return (probes, np.asarray(s_arm, np.int64), np.asarray(s_lev, np.int64),
+            np.asarray(s_coord, float))
+
 
 class ArmTracker:
-    """Turns recorded tip positions / velocities into L, phi, omega_tip (continuous alpha).
+    """Turns recorded probe positions / velocities into L, phi, omega_tip per arm.
 
     Parameters
     ----------
-    root_angle : (n_arms,) [rad]   hub-frame angle of each arm's root on the rim
-    r0 : float [m]                 hub radius
-    alpha0 : (n_arms,) [rad]       initial signed wound angle (+ trailing, - leading, 0 free)
+    mesh : Mesh
+    r0 : float [m]   hub radius (0: no hub, nothing is ever wound)
     """
 
-    def __init__(self, root_angle, r0, alpha0):
-        self.root = np.asarray(root_angle, dtype=float)
+    def __init__(self, mesh, r0):
+        self.probes, self.s_arm, self.s_lev, self.s_coord = arm_probes(mesh)
+        tips = mesh.node_sets["tips"]
+        self.n = len(tips)
+        roots = mesh.arm_root_angle
+        if len(roots) != self.n:  # no arm data: measure each tip from its own radial
+            ref = mesh.node_ref[tips]
+            roots = np.arctan2(ref[:, 1], ref[:, 0])
+        self.root = np.asarray(roots, float)
         self.r0 = float(r0)
-        self.alpha = np.asarray(alpha0, dtype=float).copy()
-        self.phi = np.where(self.alpha > 0, -1.0, np.where(self.alpha < 0, 1.0, 0.0))
 
-    def _one(self, k, x, y):
-        r0 = self.r0
-        c, s = math.cos(self.root[k]), math.sin(self.root[k])
-        xl, yl = c * x + s * y, -s * x + c * y  # tip in the root frame (root at (r0, 0))
-        qx, qy = xl - r0, yl
-        a_prev = self.alpha[k]
-        if abs(a_prev) < 0.5 * math.pi and qx >= 0.0:
-            self.alpha[k] = 0.0
-            phi = math.atan2(qy, qx)
-            self.phi[k] = phi
-            return math.hypot(qx, qy), phi
-        rho2 = xl * xl + yl * yl
-        length = math.sqrt(max(rho2 - r0 * r0, 0.0))
-        gamma = math.atan2(length, r0)
-        beta = math.atan2(yl, xl)
-        sign = 1.0 if (a_prev > 0 or (a_prev == 0 and self.phi[k] <= 0)) else -1.0
-        a = -sign * beta - gamma  # |alpha| modulo 2 pi
-        a += 2 * math.pi * round((abs(a_prev) - a) / (2 * math.pi))  # branch nearest alpha_prev
-        a = max(a, 0.0)
-        self.alpha[k] = sign * a
-        phi = -sign * (0.5 * math.pi + a)
-        self.phi[k] = phi
-        return length, phi
-
-    def update(self, tip_pos, tip_vel, hub_angle):
-        """(T, n, 3) tip positions and velocities (inertial) and (T,) hub angle ->
-        (L, phi, omega_tip), each (T, n)."""
-        T, n = tip_pos.shape[:2]
+    def update(self, probe_pos, probe_vel, hub_angle):
+        """(T, p, 3) probe positions / velocities and (T,) hub angle -> (L, phi, omega_tip),
+        each (T, n_arms)."""
+        T, n = probe_pos.shape[0], self.n
+        tip_p, tip_v = probe_pos[:, :n], probe_vel[:, :n]
         L = np.empty((T, n))
         phi = np.empty((T, n))
-        for t in range(T):
-            c, s = math.cos(hub_angle[t]), math.sin(hub_angle[t])
-            for k in range(n):
-                x, y = tip_pos[t, k, 0], tip_pos[t, k, 1]
-                L[t, k], phi[t, k] = self._one(k, c * x + s * y, -s * x + c * y)
-        px, py = tip_pos[..., 0], tip_pos[..., 1]
+        r0 = self.r0
+        sp = probe_pos[:, n:, :2]
+        on_hub = (np.hypot(sp[..., 0], sp[..., 1]) <= r0 * (1 + CONTACT_TOL) if r0 > 0
+                  else np.zeros(sp.shape[:2], bool))
+        for k in range(n):
+            sel = np.flatnonzero(self.s_arm == k)
+            lev = self.s_lev[sel]
+            nlev = lev.max() + 1 if len(sel) else 0
+            level_on = np.ones((T, nlev), bool)
+            for j in range(nlev):
+                level_on[:, j] = on_hub[:, sel[lev == j]].all(axis=1)
+            run = np.cumprod(level_on, axis=1).sum(axis=1)  # leading levels on the hub
+            gap = np.max(np.diff(np.unique(self.s_coord[sel]))) if nlev > 1 else 0.0
+            for t in range(T):
+                L[t, k], phi[t, k] = self._measure(k, t, hub_angle[t], tip_p[t, k], sp[t], sel,
+                                                   lev, int(run[t]), gap)
+        px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)
-        omega_tip = (px * tip_vel[..., 1] - py * tip_vel[..., 0]) / r2
+        omega_tip = (px * tip_v[..., 1] - py * tip_v[..., 0]) / r2
         return L, phi, omega_tip
 
-
-def initial_alpha(mesh) -> np.ndarray:
-    """Signed wound angle of each arm in the initial mesh: wrap * (free arm length) / r0 for a
-    coiled mesh, 0 otherwise."""
-    n = mesh.n_arms
-    if mesh.wrap == 0 or mesh.hub_radius <= 0:
-        return np.zeros(n)
-    free = mesh.arm_length - mesh.arm_root_coord
-    return np.full(n, mesh.wrap * free / mesh.hub_radius)
+    def _measure(self, k, t, hub_angle, tip, sp, sel, lev, run, gap):
+        r0 = self.r0
+        th_root = hub_angle + self.root[k]
+        ex, ey = math.cos(th_root), math.sin(th_root)
+        if run >= 2:  # something is wound: departure point D = last wound spine node
+            d = sp[sel[lev == run - 1][0]]
+            q0, q1 = sp[sel[lev == 0][0]], sp[sel[lev == 1][0]]
+            sense = 1.0 if q0[0] * q1[1] - q0[1] * q1[0] < 0 else -1.0  # clockwise: trailing
+            a_d = self.s_coord[sel[lev == run - 1][0]] / r0
+            # refine with the tangent from the tip (exact for a straight, taut free part)
+            rho = math.hypot(tip[0], tip[1])
+            l_tan = math.sqrt(max(rho * rho - r0 * r0, 0.0))
+            th_t = math.atan2(tip[1], tip[0]) + sense * math.atan2(l_tan, r0)
+            # angle from D on to the tangent point, along the coil (the coil may slide on a
+            # frictionless hub, so measure from D, not from the root)
+            delta = sense * (math.atan2(d[1], d[0]) - th_t)
+            delta -= 2 * math.pi * round(delta / (2 * math.pi))
+            if abs(delta) <= 2 * gap / r0:
+                alpha, length = a_d + delta, l_tan
+            else:
+                alpha, length = a_d, math.hypot(tip[0] - d[0], tip[1] - d[1])
+            if alpha > 0:
+                return length, -sense * (0.5 * math.pi + alpha)
+        qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
+        return math.hypot(qx, qy), math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)

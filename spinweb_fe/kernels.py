@@ -137,7 +137,10 @@ def apply_contact(pos, vel, force, node_mass, contact_idx, r0, mu, j_eff, omega,
         e_before = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2)
         vx0 = vel[i, 0]
         vy0 = vel[i, 1]
-        dvn = s / dt
+        # never push outwards: the impulse at most stops the inward motion along e
+        dvn = min(s / dt, max(-(vel[i, 0] * ex + vel[i, 1] * ey), 0.0))
+        if dvn <= 0.0:
+            continue
         vel[i, 0] += dvn * ex
         vel[i, 1] += dvn * ey
         if mu > 0.0:
@@ -215,16 +218,17 @@ def integrate_positions(pos, vel, inv_mass, dt):
 @njit(cache=True)
 def advance(pos, vel, hub, force, tension, inv_mass, node_mass, elem_nodes, rest, ea, cdamp,
             tied_idx, tied_ref, contact_idx, r0, mu, j_eff, law, law_params, dt, nsteps,
-            rec_every, tip_idx, rec, rec_tip_pos, rec_tip_vel):
+            rec_every, probe_idx, rec, rec_probe_pos, rec_probe_vel):
     """Run ``nsteps`` central-difference steps; record history rows every ``rec_every`` steps.
 
     Row k of ``rec`` holds REC_COLUMNS at integer step n (energies as the mean of the two
-    half-step values, accumulated work/dissipation up to t_n). ``rec_tip_pos/vel`` get the
-    tip positions x_n and velocities (v_{n-1/2} + v_{n+1/2}) / 2.
+    half-step values, accumulated work/dissipation up to t_n). ``rec_probe_pos/vel`` get the
+    positions x_n and velocities (v_{n-1/2} + v_{n+1/2}) / 2 of the probe nodes (arm tips
+    and spines, see spinweb_fe.arms).
     Returns (status, rows): status 0 ok, 1 non-finite state detected.
     """
     nrec = 0
-    ntip = tip_idx.shape[0]
+    ntip = probe_idx.shape[0]
     vtip = np.zeros((ntip, 3))
     for _ in range(nsteps):
         step = int(hub[H_STEP])
@@ -246,7 +250,7 @@ def advance(pos, vel, hub, force, tension, inv_mass, node_mass, elem_nodes, rest
             lz0 = angular_momentum_free(pos, vel, inv_mass, node_mass)
             for k in range(ntip):
                 for d in range(3):
-                    vtip[k, d] = vel[tip_idx[k], d]
+                    vtip[k, d] = vel[probe_idx[k], d]
         ke0, ke1 = integrate_free(pos, vel, force, inv_mass, node_mass, dt, record)
         w_new, dcontact = apply_contact(pos, vel, force, node_mass, contact_idx, r0, mu, j_eff,
                                         w_new, w_new - w_old, dt)
@@ -275,8 +279,8 @@ def advance(pos, vel, hub, force, tension, inv_mass, node_mass, elem_nodes, rest
             rec[nrec, 10] = tmax
             for k in range(ntip):
                 for d in range(3):
-                    rec_tip_pos[nrec, k, d] = pos[tip_idx[k], d]
-                    rec_tip_vel[nrec, k, d] = 0.5 * (vtip[k, d] + vel[tip_idx[k], d])
+                    rec_probe_pos[nrec, k, d] = pos[probe_idx[k], d]
+                    rec_probe_vel[nrec, k, d] = 0.5 * (vtip[k, d] + vel[probe_idx[k], d])
             nrec += 1
         integrate_positions(pos, vel, inv_mass, dt)
         hub[H_THETA] += dt * w_new

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spinweb_fe import kernels
-from spinweb_fe.arms import ArmTracker, initial_alpha
+from spinweb_fe.arms import ArmTracker
 from spinweb_fe.control import Control, make_control
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.model import Model, State, choose_dt, initial_state, model_from_case
@@ -44,17 +44,14 @@ class RunResult:
 class Workspace:
     """Preallocated buffers of the step loop."""
 
-    def __init__(self, model: Model, rows: int):
+    def __init__(self, model: Model, rows: int, probes: np.ndarray):
+        n_probes = len(probes)
+        self.probes = probes
         self.force = np.zeros((model.n_nodes, 3))
         self.tension = np.zeros(model.n_elems)
-        self.resize(model, rows)
-
-    def resize(self, model, rows):
-        na = len(model.tip_idx)
-        self.rows = rows
         self.rec = np.zeros((rows, len(kernels.REC_COLUMNS)))
-        self.tip_pos = np.zeros((rows, na, 3))
-        self.tip_vel = np.zeros((rows, na, 3))
+        self.probe_pos = np.zeros((rows, n_probes, 3))
+        self.probe_vel = np.zeros((rows, n_probes, 3))
 
 
 class _Shifted:
@@ -62,7 +59,8 @@ class _Shifted:
 
     def __init__(self, ws, k):
         self.force, self.tension = ws.force, ws.tension
-        self.rec, self.tip_pos, self.tip_vel = ws.rec[k:], ws.tip_pos[k:], ws.tip_vel[k:]
+        self.rec, self.probe_pos, self.probe_vel = ws.rec[k:], ws.probe_pos[k:], ws.probe_vel[k:]
+        self.probes = ws.probes
 
 
 def _shift(ws, k):
@@ -74,8 +72,8 @@ def _advance(model, control, state, ws, dt, nsteps, rec_every):
         state.pos, state.vel, state.hub, ws.force, ws.tension, model.node_inv_mass,
         model.node_mass, model.elem_nodes, model.elem_rest_len, model.elem_ea, model.elem_cdamp,
         model.tied_idx, model.tied_ref, model.contact_idx, model.hub_radius, model.hub_friction,
-        model.j_eff, control.code, control.params, dt, nsteps, rec_every, model.tip_idx,
-        ws.rec, ws.tip_pos, ws.tip_vel)
+        model.j_eff, control.code, control.params, dt, nsteps, rec_every, ws.probes,
+        ws.rec, ws.probe_pos, ws.probe_vel)
 
 
 def start(model: Model, control: Control, state: State, dt: float):
@@ -104,7 +102,7 @@ def energy_balance(h):
 
 def simulate(model: Model, control: Control, state: State, dt: float, t_end: float,
              history_dt: float, frame_dt: float = 0.0, on_rows=None, on_frame=None,
-             progress=None, energy_limit=ENERGY_LIMIT, alpha0=None) -> RunResult:
+             progress=None, energy_limit=ENERGY_LIMIT) -> RunResult:
     """Integrate from ``state`` (initial velocities v_0) to ``t_end``.
 
     Parameters
@@ -118,9 +116,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, t_end: flo
     rec_every = max(1, round(history_dt / dt))
     n_total = int(math.ceil(t_end / dt - 1e-9))
     frame_every = max(1, round(frame_dt / dt)) if frame_dt > 0 else 0
-    tracker = ArmTracker(model.mesh.arm_root_angle, model.hub_radius,
-                         initial_alpha(model.mesh) if alpha0 is None else alpha0)
-    ws = Workspace(model, ROWS_PER_CHUNK + 1)
+    tracker = ArmTracker(model.mesh, model.hub_radius)
+    ws = Workspace(model, ROWS_PER_CHUNK + 1, tracker.probes)
     t_compile = time.perf_counter()
     start(model, control, state, dt)
     _advance(model, control, State(state.pos.copy(), state.vel.copy(), state.hub.copy()),
@@ -152,7 +149,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, t_end: flo
             code, nrec = _advance(model, control, state, ws, dt, target - step, rec_every)
         loop_s += time.perf_counter() - t0
         rows = {name: ws.rec[:nrec, j].copy() for j, name in enumerate(kernels.REC_COLUMNS)}
-        L, phi, wtip = tracker.update(ws.tip_pos[:nrec], ws.tip_vel[:nrec], rows["hub_angle"])
+        L, phi, wtip = tracker.update(ws.probe_pos[:nrec], ws.probe_vel[:nrec], rows["hub_angle"])
         rows.update(arm_length=L, arm_angle=phi, tip_omega=wtip)
         for k, v in rows.items():
             chunks[k].append(v)

@@ -1,0 +1,393 @@
+"""The paper's analytical deployment model (Eqs. 4-8): case mapping, control laws, integration.
+
+:func:`params_from_case` maps a tether or web scene to :class:`ArmParams`;
+:func:`simulate` integrates the model with ``scipy.integrate.solve_ivp`` (DOP853, tight
+tolerances), switching exactly between the coiled and pivoting regimes at the events
+phi = +-pi/2, and samples the ``/history`` datasets of :mod:`spinweb_fe.results` every
+``history_dt``. :func:`run_case` does both for a case. Equations: :mod:`analytic_models`,
+derivation and start-up treatment: docs/analytic.md.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from spinweb_fe.analytic_models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
+                                        root_tension, tip_rate)
+
+log = logging.getLogger(__name__)
+
+#: default start-up free length as a fraction of H (the fully coiled L = 0 is singular)
+L0_FRACTION = 1e-4
+#: guard against chattering between regimes
+MAX_SEGMENTS = 100_000
+
+
+@dataclass(frozen=True)
+class Control:
+    """Hub control law (see CONTRACT.md).
+
+    Parameters
+    ----------
+    law : {'free', 'torque_feedback', 'spin_ramp', 'constant_torque'}
+    M0, omega0 : float [N m], [rad/s]
+        torque_feedback: M = M0 (1 - omega/omega0).
+    omega_max, ramp_time : float [rad/s], [s]
+        spin_ramp: omega = omega_max t/ramp_time, then omega_max (the torque is computed).
+    torque : float [N m]
+        constant_torque value.
+    """
+
+    law: str = "free"
+    M0: float = 0.0
+    omega0: float = 1.0
+    omega_max: float = 0.0
+    ramp_time: float = 1.0
+    torque: float = 0.0
+
+    @property
+    def prescribed(self) -> bool:
+        """True when the hub rate is prescribed (spin_ramp)."""
+        return self.law == "spin_ramp"
+
+    def hub_torque(self, omega: float) -> float:
+        """Applied torque [N m] for the torque laws."""
+        if self.law == "free":
+            return 0.0
+        if self.law == "torque_feedback":
+            return self.M0 * (1.0 - omega / self.omega0)
+        if self.law == "constant_torque":
+            return self.torque
+        raise ValueError(f"law '{self.law}' prescribes the hub rate, not the torque")
+
+    def hub_rate(self, t: float) -> tuple[float, float]:
+        """spin_ramp: prescribed (omega [rad/s], omega_dot [rad/s^2]) at time t."""
+        if t < self.ramp_time:
+            return self.omega_max * t / self.ramp_time, self.omega_max / self.ramp_time
+        return self.omega_max, 0.0
+
+    def breaks(self, t_end: float) -> list[float]:
+        """Times at which the right-hand side is discontinuous (integration restarts there)."""
+        if self.prescribed and self.ramp_time < t_end:
+            return [self.ramp_time]
+        return []
+
+
+@dataclass
+class AnalyticResult:
+    """Sampled history (dict of arrays, names as in ``results.HISTORY_UNITS``) and run info."""
+
+    history: dict
+    params: ArmParams
+    model: str
+    switches: list = field(default_factory=list)   # (time, phi, new regime)
+    stopped: str = ""                               # non-empty if stopped before t_end
+    info: dict = field(default_factory=dict)
+
+
+def params_from_case(case, tether_mass: bool = True) -> ArmParams:
+    """Map a case to the model parameters.
+
+    Tether scene: n = tethers.count, H = tethers.length, tip mass, and (if ``tether_mass``)
+    the tether's own mass rho A H as a uniform arm mass (the FE tether has line density
+    rho A). Web scene: n = 4 (square outlines) or 3 (triangular), H = side/2, and the web
+    mass m_w = rho_A x web area with the paper's Eq. 7 profile, m_w/n per arm; rho_A is
+    web.areal_density or the continuum value rho A lambda of the mesh (lambda = 2/t for a
+    square mesh). The hub cut-out is not modelled (see docs/analytic.md).
+    """
+    hub = case.hub
+    if case.scene == "tethers":
+        t = case.tethers
+        m_uni = case.cable.density * case.cable.area * t.length if tether_mass else 0.0
+        return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
+                         m_tip=case.tip_mass.mass, m_uni=m_uni)
+    from meshgen.flat import LENGTH_PER_AREA_T, MESH_TYPE
+    w = case.web
+    rho_a = w.areal_density
+    if rho_a is None:
+        rho_a = (case.cable.density * case.cable.area
+                 * LENGTH_PER_AREA_T[MESH_TYPE[w.topology]] / w.mesh_width)
+    if w.topology.startswith("tri"):
+        n, area = 3, math.sqrt(3.0) / 4.0 * w.side ** 2
+    else:
+        n, area = 4, w.side ** 2
+    return ArmParams(n=n, H=0.5 * w.side, r0=hub.radius, J_hub=hub.inertia,
+                     m_tip=case.tip_mass.mass, m_lin=rho_a * area / n)
+
+
+def control_from_case(case) -> Control:
+    """The case's [control] table as a :class:`Control`."""
+    c = case.control
+    vals = {k: getattr(c, k) for k in ("M0", "omega0", "omega_max", "ramp_time", "torque")}
+    return Control(law=c.law, **{k: v for k, v in vals.items() if v is not None})
+
+
+def initial_state(p: ArmParams, control: Control, coiled: bool, wrap: str, omega_init: float,
+                  spin: str, L0: float | None = None, model: str = "consistent"):
+    """Start state (phi, omega, Psi, regime).
+
+    Coiled start: L = 0 is singular, so the arm starts *captured* (wound and turning rigidly
+    with the hub, Psi = omega) with a small free length L0 (default ``L0_FRACTION`` H),
+    phi0 = -+(pi/2 + (H - L0)/r0) for a trailing/leading wrap; it is released as soon as
+    the free-arm equations would unwind it (see :func:`simulate`). Straight start: phi0 = 0,
+    L = H, pivoting. spin='all': the arms co-rotate with the hub (Psi = omega_init).
+    spin='hub': a captured (coiled) arm is tied to the hub, so the start is a momentum-
+    conserving inelastic coupling omega = J_hub omega_init / J_captured (the loss is
+    reported); straight arms start non-rotating (Psi = 0). spin_ramp starts from omega = 0.
+    """
+    if coiled:
+        L0 = L0_FRACTION * p.H if L0 is None else L0
+        if not 0.0 < L0 < p.H:
+            raise ValueError(f"start-up free length L0 = {L0} m must be in (0, H)")
+        sign = -1.0 if wrap == "trailing" else 1.0
+        phi0, regime = sign * (HALF_PI + (p.H - L0) / p.r0), "captured"
+    else:
+        phi0, regime = 0.0, "pivoting"
+    if control.prescribed:
+        omega = control.hub_rate(0.0)[0]
+        return phi0, omega, omega, regime
+    if spin == "all":
+        return phi0, omega_init, omega_init, regime
+    if coiled:
+        omega = p.J_hub * omega_init / _captured_inertia(model, p, L0)
+        return phi0, omega, omega, regime
+    return phi0, omega_init, 0.0, regime
+
+
+def _captured_inertia(model, p, L):
+    """Inertia of hub + captured arms (free part frozen in the coil) in each model."""
+    m_f, S, I = p.moments(L)
+    base = p.J0 if model == "consistent" else p.J_hub + p.n * p.r0 ** 2 * m_f
+    return base + p.n * I
+
+
+def _accel(model, p, control, regime, t, phi, omega, psi):
+    """(omega', Psi', M) in any regime; captured arms turn with the hub (Psi = omega)."""
+    coiled = regime != "pivoting"
+    if regime == "captured":
+        J = _captured_inertia(model, p, p.H - p.r0 * (abs(phi) - HALF_PI))
+        if control.prescribed:
+            wd = control.hub_rate(t)[1]
+            return wd, wd, J * wd
+        M = control.hub_torque(omega)
+        return M / J, M / J, M
+    if control.prescribed:
+        return accelerations(model, p, phi, omega, psi, coiled, omega_dot=control.hub_rate(t)[1])
+    return accelerations(model, p, phi, omega, psi, coiled, torque=control.hub_torque(omega))
+
+
+def _release(model, p, control, t, y):
+    """> 0 while a captured arm stays wound: sigma * phi'' of the free coiled equations."""
+    phi, omega = y[1], y[2]
+    wd, pd, _ = _accel(model, p, control, "coiled", t, phi, omega, omega)
+    return math.copysign(1.0, phi) * (pd - wd)
+
+
+def _rhs_factory(model, p, control, regime):
+    def rhs(t, y):
+        omega_dot, psi_dot, M = _accel(model, p, control, regime, t, y[1], y[2], y[3])
+        # y = theta, phi, omega, Psi, torque work W, torque impulse P
+        return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[2], M]
+    return rhs
+
+
+def _events(model, p, control, regime, phi_now, L_min):
+    sigma = 1.0 if phi_now > 0 else -1.0
+    if regime == "captured":
+        def release(t, y):
+            return _release(model, p, control, t, y)
+        release.terminal, release.direction = True, -1.0
+        return [release]
+    if regime == "coiled":
+        def leave(t, y):           # |phi| back to pi/2: the arm starts pivoting
+            return sigma * y[1] - HALF_PI
+
+        def wound(t, y):           # free length down to L_min: captured by the hub
+            return p.H - p.r0 * (sigma * y[1] - HALF_PI) - L_min
+        leave.terminal = wound.terminal = True
+        leave.direction = wound.direction = -1.0
+        return [leave, wound]
+
+    def up(t, y):
+        return y[1] - HALF_PI
+
+    def down(t, y):
+        return y[1] + HALF_PI
+    up.terminal = down.terminal = True
+    up.direction, down.direction = 1.0, -1.0
+    return [up, down]
+
+
+def simulate(p: ArmParams, control: Control, *, model: str = "consistent", t_end: float,
+             history_dt: float, coiled: bool = True, wrap: str = "trailing",
+             omega_init: float = 8 * math.pi, spin: str = "all", L0: float | None = None,
+             rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853") -> AnalyticResult:
+    """Integrate the model from t = 0 to ``t_end`` and sample the history.
+
+    Three regimes, switched exactly by solve_ivp events: ``pivoting`` (|phi| <= pi/2, L = H),
+    ``coiled`` (|phi| > pi/2, L = H - r0 (|phi| - pi/2)) and ``captured`` (a fully wound arm,
+    L <= L0, turning rigidly with the hub). A captured arm is released when the coiled
+    equations give sigma phi'' < 0 (it would unwind); a coiled arm whose free length falls to
+    L0/2 is captured by a momentum-conserving inelastic impact, whose energy loss is
+    recorded as ``contact_dissipation``.
+
+    Parameters
+    ----------
+    p : ArmParams
+    control : Control
+    model : {'printed', 'consistent'}
+    t_end, history_dt : float [s]
+    coiled : bool
+        Start fully coiled (True) or straight and radial (False).
+    wrap : {'trailing', 'leading'}
+        Coil direction relative to a positive spin.
+    omega_init : float [rad/s]
+        Initial hub rate (ignored by spin_ramp, which starts from 0).
+    spin : {'all', 'hub'}
+    L0 : float [m], optional
+        Start-up free length of a coiled start (default ``L0_FRACTION`` H).
+    rtol, atol : float
+        solve_ivp tolerances; atol applies to angles [rad] and rates [rad/s], the torque
+        work and impulse use atol scaled by the initial energy and momentum.
+
+    Returns
+    -------
+    AnalyticResult
+    """
+    if model not in MODELS:
+        raise ValueError(f"unknown model '{model}' (valid: {', '.join(MODELS)})")
+    phi0, omega0, psi0, regime = initial_state(p, control, coiled, wrap, omega_init, spin, L0,
+                                                 model)
+    L_start = p.H - p.r0 * max(0.0, abs(phi0) - HALF_PI)
+    L_min = 0.5 * L_start
+    E_init = 0.5 * (p.J_hub if spin == "hub" and coiled and not control.prescribed
+                    else 0.0) * omega_init ** 2
+    E0, K0 = invariants(p, phi0, omega0, psi0, regime != "pivoting")
+    w_scale = max(abs(omega_init), abs(control.omega_max), 1.0)
+    atol_v = np.array([atol, atol, atol * w_scale, atol * w_scale,
+                       atol * max(E0, p.J0 * w_scale ** 2), atol * max(abs(K0), p.J0 * w_scale)])
+    y = np.array([0.0, phi0, omega0, psi0, 0.0, 0.0])
+    t, segments, switches, stopped, lost = 0.0, [], [], "", 0.0
+    stops = control.breaks(t_end) + [t_end]
+    while t < t_end and not stopped:
+        if len(segments) > MAX_SEGMENTS:
+            stopped = f"more than {MAX_SEGMENTS} regime switches by t = {t:.6g} s (chattering)"
+            break
+        if regime == "captured" and _release(model, p, control, t, y) < 0:
+            regime = "coiled"
+            switches.append((t, y[1], regime))
+        t_stop = next(b for b in stops if b > t)
+        sol = solve_ivp(_rhs_factory(model, p, control, regime), (t, t_stop), y,
+                        method=method, rtol=rtol, atol=atol_v, dense_output=True,
+                        events=_events(model, p, control, regime, y[1], L_min))
+        if sol.status < 0:
+            stopped = f"solve_ivp failed at t = {sol.t[-1]:.6g} s: {sol.message}"
+        segments.append((t, sol.t[-1], sol.sol, regime, lost))
+        t, y = sol.t[-1], sol.y[:, -1].copy()
+        if sol.status != 1:
+            continue
+        hit = [i for i, te in enumerate(sol.t_events) if len(te)][0]
+        if regime == "captured":
+            regime = "coiled"
+        elif regime == "coiled" and hit == 1:     # inelastic capture, K conserved
+            E_before, K = invariants(p, y[1], y[2], y[3], True)
+            m_f, S, I = p.moments(L_min)
+            y[2] = y[3] = (K if model == "consistent" else
+                           (p.J_hub + p.n * p.r0 ** 2 * m_f) * y[2] + p.n * I * y[3]) \
+                / _captured_inertia(model, p, L_min)
+            lost += E_before - invariants(p, y[1], y[2], y[3], True)[0]
+            regime = "captured"
+        else:
+            y[1] = math.copysign(HALF_PI, y[1])
+            regime = "pivoting" if regime == "coiled" else "coiled"
+        switches.append((t, y[1], regime))
+    hist = _sample(model, p, control, segments, history_dt, t_end)
+    info = {"E0": E0, "K0": K0, "L0": L_start,
+            "start_loss": E_init - E0 if E_init else 0.0, "contact_loss": lost}
+    if stopped:
+        log.warning("analytic model stopped early: %s", stopped)
+    return AnalyticResult(hist, p, model, switches, stopped, info)
+
+
+def _sample(model, p, control, segments, dt, t_end):
+    n_out = int(math.floor(t_end / dt + 1e-9)) + 1
+    times = np.arange(n_out) * dt
+    times = times[times <= segments[-1][1] + 1e-12]
+    names = ("hub_angle", "hub_omega", "hub_torque", "kinetic_energy", "torque_work",
+             "angular_momentum", "max_tension", "L", "phi", "tip", "impulse", "lost")
+    cols = {k: np.empty(len(times)) for k in names}
+    k = 0
+    for i, (ta, tb, dense, regime, lost) in enumerate(segments):
+        last = i == len(segments) - 1
+        coiled = regime != "pivoting"
+        while k < len(times) and (times[k] < tb or (last and times[k] <= tb + 1e-12)):
+            tk = min(times[k], tb)
+            theta, phi, omega, psi, work, imp = dense(tk)
+            wd, _, M = _accel(model, p, control, regime, tk, phi, omega, psi)
+            E, K = invariants(p, phi, omega, psi, coiled)
+            L = p.H - p.r0 * max(0.0, abs(phi) - HALF_PI) if coiled else p.H
+            vals = (theta, omega, M, E, work, K, root_tension(p, phi, omega, psi, wd, coiled),
+                    L, phi, tip_rate(p, phi, omega, psi, coiled), imp, lost)
+            for name, v in zip(names, vals):
+                cols[name][k] = v
+            k += 1
+    n, zeros = p.n, np.zeros(len(times))
+    return {"time": times, "hub_angle": cols["hub_angle"], "hub_omega": cols["hub_omega"],
+            "hub_torque": cols["hub_torque"], "kinetic_energy": cols["kinetic_energy"],
+            "strain_energy": zeros, "torque_work": cols["torque_work"],
+            "damping_dissipation": zeros.copy(), "contact_dissipation": cols["lost"],
+            "angular_momentum": cols["angular_momentum"], "max_tension": cols["max_tension"],
+            "arm_length": np.repeat(cols["L"][:, None], n, axis=1),
+            "arm_angle": np.repeat(cols["phi"][:, None], n, axis=1),
+            "tip_omega": np.repeat(cols["tip"][:, None], n, axis=1),
+            "torque_impulse": (cols["impulse"], "N m s")}
+
+
+def drifts(result: AnalyticResult) -> tuple[np.ndarray, np.ndarray]:
+    """Relative balance errors over time: (K - K0 - torque impulse)/|K0| and
+    (E - E0 - torque work)/E0 (with K0, E0 replaced by the current scale if they vanish)."""
+    h = result.history
+    K, E = h["angular_momentum"], h["kinetic_energy"]
+    imp = h["torque_impulse"][0]
+    K0, E0 = K[0], E[0]
+    k_scale = max(abs(K0), np.max(np.abs(K)), 1e-300)
+    e_scale = max(E0, np.max(E), 1e-300)
+    lost = h["contact_dissipation"]
+    return (K - K0 - imp) / k_scale, (E + lost - E0 - h["torque_work"]) / e_scale
+
+
+def run_case(case, model: str = "consistent", tether_mass: bool = True,
+             L0: float | None = None, rtol: float = 1e-10, atol: float = 1e-10) -> AnalyticResult:
+    """Map a case, integrate the chosen model to ``time.end`` and return the result."""
+    p = params_from_case(case, tether_mass=tether_mass)
+    if case.control.law == "spin_ramp" and case.initial.omega != 0.0:
+        log.info("spin_ramp starts from omega = 0: initial.omega = %g is not used",
+                 case.initial.omega)
+    coiled = case.fold.pattern in ("star", "coiled")
+    return simulate(p, control_from_case(case), model=model, t_end=case.time.end,
+                    history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
+                    omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
+                    rtol=rtol, atol=atol)
+
+
+def write(path, case, result: AnalyticResult, rtol: float, atol: float):
+    """Write ``analytic.h5``: root attributes (model, tolerances, ...) and ``/history``."""
+    import h5py
+
+    from spinweb_fe.results import write_history, write_root_attrs
+    p = result.params
+    with h5py.File(path, "w") as h5:
+        write_root_attrs(h5, case, model=result.model, rtol=rtol, atol=atol,
+                         solver="scipy.integrate.solve_ivp DOP853",
+                         arms=p.n, arm_length_H=p.H, hub_radius=p.r0, hub_inertia=p.J_hub,
+                         tip_mass=p.m_tip, arm_mass_eq7=p.m_lin, arm_mass_uniform=p.m_uni,
+                         start_length_L0=result.info["L0"],
+                         start_energy_loss=result.info["start_loss"],
+                         stopped=result.stopped,
+                         switch_times=np.array([s[0] for s in result.switches], dtype=float))
+        write_history(h5, result.history)

@@ -1,0 +1,326 @@
+"""Prestressability of a flat web by spin: the force method (Pellegrino & Calladine).
+
+For a pin-jointed web in its flat, deployed shape the in-plane equilibrium equations of
+the free nodes read ``A t = f`` with ``A`` (dof x b) the equilibrium matrix, ``t`` (b,)
+the bar tensions [N] and ``f`` the nodal loads [N]. The singular value decomposition of
+``A`` gives its rank r, s = b - r independent states of self-stress (the null space of
+``A``) and m = dof - r inextensional mechanisms (the null space of ``A^T``).
+
+The spin load is the centrifugal force ``f_i = m_i omega^2 r_i`` (lumped cable mass plus
+point masses, about the hub axis at the origin). The web carries it in its flat shape
+only if ``f`` has no component on the mechanisms (relative residual ``||A t0 - f|| / ||f||``
+of the least-squares particular solution ``t0 = A^+ f`` is zero); otherwise the web must
+change shape ("distort") before it can carry the load. Among all the equilibrium tensions
+``t = t0 + S alpha`` (S: self-stress basis) the linear programme
+
+    maximise  tau  subject to  A t = A t0,  t >= tau,  |t| <= cap max|t0|
+
+(scipy's HiGHS) finds the combination with the largest minimum tension. The web is
+prestressable by spin if the load is compatible and that minimum is positive.
+
+Supports: if the mesh has at least two ``hub_tied`` nodes they are fixed (a rigid hub: a
+rigid body takes any self-balanced set of forces, which is exactly what fixed nodes give,
+so the self-stress states are the same), and cables joining two hub nodes are left out
+(they are part of the hub). Otherwise the node nearest the centre is pinned and the
+tangential motion of the node farthest from it is blocked: a statically determinate
+support that only removes the three in-plane rigid-body motions (its reactions vanish for
+a balanced load). Either way the counts s and m refer to the web alone.
+
+Use the web without collinear subdivision (``elements_per_segment = 1``): each extra node
+on a straight cable adds one trivial transverse mechanism and one dof. The dense SVD costs
+O(dof * b * min(dof, b)) time and O(b^2) memory: a few seconds up to ~3000 bars.
+
+A mechanism that the load does not excite may still be stiffened by the tensions. With
+``stability = True`` the reduced tangent stiffness on the mechanism space,
+``Q = M^T (K_G - omega^2 M_mass) M`` (geometric stiffness of the tensions minus the
+centrifugal softening of the rotating frame; the elastic stiffness vanishes on mechanisms),
+is computed; positive definite Q means the prestressed spinning web is stable to first
+order in its flat shape.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+from scipy.sparse import csr_matrix, hstack, identity
+
+from meshgen.mesh import Mesh, lumped_mass
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PrestressReport:
+    """Result of :func:`analyse`. Forces in N, stiffness in N/m.
+
+    Attributes
+    ----------
+    n_nodes, n_bars, n_dof : int
+        Nodes, bars taken into account, free in-plane degrees of freedom.
+    rank, n_selfstress, n_mechanisms : int
+        Rank r of A, s = b - r, m = dof - r.
+    supports : str
+        How the rigid-body motions were removed.
+    load_norm : float [N]
+        ||f|| over the free dof.
+    load_residual : float
+        ||A t0 - f|| / ||f||: the part of the load on the mechanisms (0 = compatible).
+        Point masses dominate ||f||; see also ``node_residual_max``.
+    node_residual_max : float
+        Largest fraction of a node's own load left unbalanced by t0.
+    method : str
+        'LP (HiGHS)' or 'least squares (unique: s = 0)'.
+    min_force, max_force : float [N]
+        Extreme bar tensions of the best combination (negative = compression).
+    n_compressed : int
+        Bars with a negative tension in the best combination.
+    capped : bool
+        The LP reached the bound on the forces (a tension-only self-stress exists
+        somewhere: the minimum is then limited only by the bound).
+    elastic_min_force, elastic_max_force : float [N]
+        Extreme tensions of the compatible (elastic) solution of a web cut stress-free to
+        its flat shape with the same EA in every cable: ``S^T F t = 0``, F = diag(L/EA).
+    elastic_n_compressed : int
+        Bars in compression in that elastic solution.
+    load_compatible, prestressable : bool
+        Verdict: compatible load, and min_force > 0.
+    stability_min : float [N/m]
+        Smallest eigenvalue of Q (NaN if there is no mechanism or it was not computed).
+    n_neutral, n_negative : int
+        Eigenvalues of Q that are zero (within 1e-9 of the largest diagonal stiffness)
+        or negative; Q is positive definite if both are 0 (-1: not computed).
+    tension : (b,) float64 [N]
+        Bar tensions of the best combination, in the order of ``bars``.
+    bars : (b,) int64
+        Indices of the mesh elements analysed.
+    """
+
+    n_nodes: int
+    n_bars: int
+    n_dof: int
+    rank: int
+    n_selfstress: int
+    n_mechanisms: int
+    supports: str
+    load_norm: float
+    load_residual: float
+    node_residual_max: float
+    method: str
+    min_force: float
+    max_force: float
+    n_compressed: int
+    capped: bool
+    elastic_min_force: float
+    elastic_max_force: float
+    elastic_n_compressed: int
+    load_compatible: bool
+    prestressable: bool
+    stability_min: float
+    n_neutral: int
+    n_negative: int
+    tension: np.ndarray
+    bars: np.ndarray
+
+    @property
+    def mechanisms_stiffened(self) -> bool | None:
+        """Q positive definite (None if not computed)."""
+        if self.n_neutral < 0:
+            return None
+        return self.n_neutral == 0 and self.n_negative == 0
+
+    @property
+    def maxwell(self) -> int:
+        """b - dof, which equals s - m (Maxwell's rule with the supports)."""
+        return self.n_bars - self.n_dof
+
+    def verdict(self) -> str:
+        """One line: prestressable or why not."""
+        if not self.load_compatible:
+            return (f"NOT prestressable as is: {self.load_residual:.1%} of the load lies on "
+                    f"mechanisms, the web must distort")
+        if not self.prestressable:
+            return (f"NOT prestressable: the best self-stress combination leaves "
+                    f"{self.n_compressed} bars in compression (min {self.min_force:.4g} N)")
+        return f"prestressable by spin: all {self.n_bars} bars in tension"
+
+
+def free_dof_basis(xy, fixed_nodes, roller=None):
+    """Sparse projection P (dof, 2n) onto the free in-plane dof.
+
+    Parameters
+    ----------
+    xy : (n, 2) float64 [m]
+    fixed_nodes : int array
+        Nodes fixed in both directions.
+    roller : tuple (node, direction) or None
+        A node that may move only along the unit vector ``direction``.
+    """
+    n = len(xy)
+    fixed = set(int(i) for i in fixed_nodes)
+    rows, cols, vals = [], [], []
+    dof = 0
+    for i in range(n):
+        if roller is not None and i == roller[0]:
+            rows += [dof, dof]
+            cols += [2 * i, 2 * i + 1]
+            vals += [float(roller[1][0]), float(roller[1][1])]
+            dof += 1
+        elif i not in fixed:
+            rows += [dof, dof + 1]
+            cols += [2 * i, 2 * i + 1]
+            vals += [1.0, 1.0]
+            dof += 2
+    return csr_matrix((vals, (rows, cols)), shape=(dof, 2 * n))
+
+
+def equilibrium_matrix(xy, bars):
+    """Full equilibrium matrix (2n, b): column k holds the unit pulls of bar k on its nodes.
+
+    Sign convention: ``A t = f`` with t > 0 a tension and f the external load.
+    """
+    n = len(xy)
+    a, b = bars[:, 0], bars[:, 1]
+    d = xy[a] - xy[b]
+    e = d / np.linalg.norm(d, axis=1)[:, None]
+    A = np.zeros((2 * n, len(bars)))
+    k = np.arange(len(bars))
+    for c in range(2):
+        A[2 * a + c, k] += e[:, c]   # node a is pulled towards b: -t e balances +f
+        A[2 * b + c, k] -= e[:, c]
+    return A
+
+
+def geometric_stiffness(xy, bars, tension):
+    """(2n, 2n) geometric stiffness [N/m] of bars with the given tensions."""
+    n = len(xy)
+    d = xy[bars[:, 1]] - xy[bars[:, 0]]
+    length = np.linalg.norm(d, axis=1)
+    e = d / length[:, None]
+    g = (tension / length)[:, None, None] * (np.eye(2)[None] - e[:, :, None] * e[:, None, :])
+    K = np.zeros((n, 2, n, 2))
+    i, j = bars[:, 0], bars[:, 1]
+    for a, b, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
+        np.add.at(K, (a, slice(None), b), sign * g)
+    return K.reshape(2 * n, 2 * n)
+
+
+def _supports(mesh, xy):
+    hub = np.asarray(mesh.node_sets.get("hub_tied", []), np.int64)
+    if len(hub) >= 2:
+        return set(hub.tolist()), None, f"{len(hub)} hub-tied nodes fixed (rigid hub)"
+    pin = int(np.argmin(np.hypot(xy[:, 0], xy[:, 1])))
+    far = int(np.argmax(np.hypot(*(xy - xy[pin]).T)))
+    radial = (xy[far] - xy[pin]) / np.linalg.norm(xy[far] - xy[pin])
+    return {pin}, (far, radial), (f"node {pin} pinned, node {far} on a radial roller "
+                                  f"(statically determinate)")
+
+
+def analyse(mesh: Mesh, omega: float, line_density: float, stability: bool = True,
+            cap: float = 100.0, rtol: float = 1e-9) -> PrestressReport:
+    """Force-method prestressability of a flat web spinning at ``omega``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Flat web (uses ``node_ref`` x, y; best without collinear subdivision).
+    omega : float [rad/s]
+        Spin rate; forces scale with omega^2, the verdict does not depend on it.
+    line_density : float [kg/m]
+        Cable mass per length rho * A (point masses come from the mesh).
+    stability : bool
+        Also compute the reduced tangent stiffness on the mechanisms.
+    cap : float
+        Bound on each bar force in the LP, as a multiple of max(|t0|).
+    rtol : float
+        Relative tolerance for the rank, the load residual and the sign of the tensions.
+
+    Returns
+    -------
+    PrestressReport
+    """
+    xy = np.ascontiguousarray(mesh.node_ref[:, :2], dtype=np.float64)
+    fixed, roller, how = _supports(mesh, xy)
+    fixed_arr = np.array(sorted(fixed), np.int64)
+    both_fixed = np.isin(mesh.elem_nodes, fixed_arr).all(axis=1)
+    bar_ids = np.flatnonzero(~both_fixed)
+    bars = mesh.elem_nodes[bar_ids]
+    P = free_dof_basis(xy, fixed, roller)
+    A = P @ equilibrium_matrix(xy, bars)
+    mass = lumped_mass(mesh, line_density)
+    f = P @ (omega ** 2 * mass[:, None] * xy).ravel()
+    dof, b = A.shape
+    U, sig, Vt = np.linalg.svd(A, full_matrices=True)
+    r = int(np.sum(sig > rtol * sig.max())) if sig.size else 0
+    S, M = Vt[r:].T, U[:, r:]
+    t0 = Vt[:r].T @ ((U[:, :r].T @ f) / sig[:r])
+    fnorm = float(np.linalg.norm(f))
+    residual = float(np.linalg.norm(A @ t0 - f) / fnorm) if fnorm > 0 else 0.0
+    node_res = np.hypot(*(P.T @ (f - A @ t0)).reshape(-1, 2).T)
+    node_load = np.hypot(*(P.T @ f).reshape(-1, 2).T)
+    loaded = node_load > 1e-12 * max(float(node_load.max(initial=0.0)), 1e-300)
+    node_residual = float((node_res[loaded] / node_load[loaded]).max(initial=0.0))
+    capped = False
+    if S.shape[1] == 0:
+        t, t_el, method = t0, t0, "least squares (unique: s = 0)"
+    else:
+        t, capped = _best_selfstress(csr_matrix(A), t0, cap)
+        method = "LP (HiGHS)"
+        flex = np.linalg.norm(xy[bars[:, 1]] - xy[bars[:, 0]], axis=1)  # L / EA, EA uniform
+        SF = S.T * flex
+        t_el = t0 - S @ np.linalg.solve(SF @ S, SF @ t0)  # compatibility: S^T F t = 0
+    scale = max(float(np.abs(t).max()), 1e-300)
+    compatible = residual <= 1e-6
+    prestressable = compatible and float(t.min()) > rtol * scale
+    qmin, n_neutral, n_negative = float("nan"), -1, -1
+    if stability and compatible and M.shape[1] > 0:
+        K = geometric_stiffness(xy, bars, t)
+        K -= omega ** 2 * np.diag(np.repeat(mass, 2))  # centrifugal softening
+        Kf = P @ (P @ K).T  # P K P^T (K is symmetric)
+        w = np.linalg.eigvalsh(M.T @ Kf @ M)
+        tol = 1e-9 * float(np.abs(np.diag(Kf)).max())
+        qmin, n_neutral, n_negative = float(w.min()), int(np.sum(np.abs(w) <= tol)), int(
+            np.sum(w < -tol))
+    log.debug("prestress: dof=%d b=%d r=%d residual=%.3g", dof, b, r, residual)
+    return PrestressReport(
+        n_nodes=mesh.n_nodes, n_bars=b, n_dof=dof, rank=r, n_selfstress=b - r,
+        n_mechanisms=dof - r, supports=how, load_norm=fnorm, load_residual=residual,
+        node_residual_max=node_residual,
+        method=method, min_force=float(t.min()), max_force=float(t.max()),
+        n_compressed=int(np.sum(t < -rtol * scale)), capped=capped,
+        elastic_min_force=float(t_el.min()), elastic_max_force=float(t_el.max()),
+        elastic_n_compressed=int(np.sum(t_el < -rtol * scale)),
+        load_compatible=compatible, prestressable=prestressable, stability_min=qmin,
+        n_neutral=n_neutral, n_negative=n_negative,
+        tension=t, bars=bar_ids)
+
+
+def _best_selfstress(A, t0, cap):
+    """max_{t, tau} tau s.t. A t = A t0, t >= tau, |t| <= cap max|t0| (sparse, HiGHS),
+    then, keeping min(t) >= tau, the smallest max(t).
+
+    Solved in the bar forces themselves (A is sparse) rather than in the self-stress
+    amplitudes (S is dense), scaled so that max|t0| = 1.
+    """
+    dof, b = A.shape
+    scale = max(float(np.abs(t0).max()), 1e-300)
+    rhs = A @ (t0 / scale)
+    c = np.zeros(b + 1)
+    c[-1] = -1.0
+    A_eq = hstack([A, csr_matrix((dof, 1))]).tocsr()
+    A_ub = hstack([-identity(b), np.ones((b, 1))]).tocsr()
+    bounds = [(-cap, cap)] * b + [(None, None)]
+    res = linprog(c, A_ub=A_ub, b_ub=np.zeros(b), A_eq=A_eq, b_eq=rhs, bounds=bounds,
+                  method="highs")
+    if res.status != 0:
+        raise RuntimeError(f"prestress LP failed: {res.message}")
+    tau = res.x[-1]
+    # second stage: keep min(t) >= tau, make max(t) as small as possible (unique spread)
+    A_ub2 = hstack([identity(b), -np.ones((b, 1))]).tocsr()
+    lower = tau - 1e-9 * abs(tau)
+    res2 = linprog(c * -1.0, A_ub=A_ub2, b_ub=np.zeros(b), A_eq=A_eq, b_eq=rhs,
+                   bounds=[(lower, cap)] * b + [(None, None)], method="highs")
+    t = (res2.x if res2.status == 0 else res.x)[:b]
+    return t * scale, bool(np.any(np.abs(res.x[:b]) >= 0.999 * cap))
