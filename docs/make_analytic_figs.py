@@ -46,7 +46,7 @@ def four_panel(runs, title, path):
 
 
 def paper_case(*sets):
-    return case_mod.load(ROOT / "cases" / "paper_web.toml", list(sets))
+    return case_mod.load(ROOT / "cases" / "paper_free_web.toml", list(sets))
 
 
 def drift_report(label, res, t_marks=(0.1, 0.25, 0.5, 1.0, 5.0)):

@@ -5,7 +5,7 @@
 Uses pyvista off-screen; falls back to matplotlib when no OpenGL context is available
 (or with ``--matplotlib``). Writes mesh_flat.png (deployed), mesh_star.png (star fold
 before coiling) and mesh_folded.png (star fold coiled trailing on the hub: the initial
-state of cases/paper_web.toml).
+state of cases/paper_free_web.toml).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def render_matplotlib(mesh, pos, path, title):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", default=str(HERE.parent / "cases" / "paper_web.toml"))
+    ap.add_argument("--case", default=str(HERE.parent / "cases" / "paper_free_web.toml"))
     ap.add_argument("--matplotlib", action="store_true", help="skip pyvista")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")

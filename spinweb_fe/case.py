@@ -94,7 +94,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "time": {
         "end": F("float", REQUIRED, "pos", "s", "end time"),
-        "cfl": F("float", 0.5, "frac", "", "fraction of the critical step L0/c"),
+        "cfl": F("float", 0.3, "frac", "",
+                 "fraction of the critical step L0/c (0.3: see docs/stability.md)"),
         "dt": F("float", None, "pos", "s", "optional cap on the time step"),
     },
     "output": {

@@ -41,6 +41,7 @@ order in its flat shape.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,6 +93,11 @@ class PrestressReport:
     n_neutral, n_negative : int
         Eigenvalues of Q that are zero (within 1e-9 of the largest diagonal stiffness)
         or negative; Q is positive definite if both are 0 (-1: not computed).
+    omega_band : (float, float)
+        If prestressable: the spin rates, as fractions of ``omega``, between which a web
+        whose rest lengths are tailored to give ``tension`` at ``omega`` stays in tension
+        (linear, equal EA: the misfit self-stress t - t_el is fixed, the elastic part
+        grows as omega^2). (0, inf) when s = 0. NaN otherwise.
     tension : (b,) float64 [N]
         Bar tensions of the best combination, in the order of ``bars``.
     bars : (b,) int64
@@ -121,6 +127,7 @@ class PrestressReport:
     stability_min: float
     n_neutral: int
     n_negative: int
+    omega_band: tuple
     tension: np.ndarray
     bars: np.ndarray
 
@@ -144,7 +151,12 @@ class PrestressReport:
         if not self.prestressable:
             return (f"NOT prestressable: the best self-stress combination leaves "
                     f"{self.n_compressed} bars in compression (min {self.min_force:.4g} N)")
-        return f"prestressable by spin: all {self.n_bars} bars in tension"
+        if self.elastic_n_compressed == 0:
+            return f"prestressable by spin: all {self.n_bars} bars in tension"
+        lo, hi = self.omega_band
+        return (f"prestressable only with tailored rest lengths: cut stress-free, "
+                f"{self.elastic_n_compressed} of {self.n_bars} bars are compressed; tailored, "
+                f"tension holds for {lo:.3g} to {hi:.3g} times this omega")
 
 
 def free_dof_basis(xy, fixed_nodes, roller=None):
@@ -274,6 +286,7 @@ def analyse(mesh: Mesh, omega: float, line_density: float, stability: bool = Tru
     scale = max(float(np.abs(t).max()), 1e-300)
     compatible = residual <= 1e-6
     prestressable = compatible and float(t.min()) > rtol * scale
+    band = _omega_band(t, t_el) if prestressable else (float("nan"), float("nan"))
     qmin, n_neutral, n_negative = float("nan"), -1, -1
     if stability and compatible and M.shape[1] > 0:
         K = geometric_stiffness(xy, bars, t)
@@ -293,8 +306,18 @@ def analyse(mesh: Mesh, omega: float, line_density: float, stability: bool = Tru
         elastic_min_force=float(t_el.min()), elastic_max_force=float(t_el.max()),
         elastic_n_compressed=int(np.sum(t_el < -rtol * scale)),
         load_compatible=compatible, prestressable=prestressable, stability_min=qmin,
-        n_neutral=n_neutral, n_negative=n_negative,
+        n_neutral=n_neutral, n_negative=n_negative, omega_band=band,
         tension=t, bars=bar_ids)
+
+
+def _omega_band(t, t_el):
+    """Range of (omega'/omega) keeping x t_el + (t - t_el) > 0, x = (omega'/omega)^2."""
+    misfit = t - t_el
+    tol = 1e-9 * float(np.abs(t).max())
+    up, down = t_el > tol, t_el < -tol
+    lo = float(np.max(-misfit[up] / t_el[up], initial=0.0))
+    hi = float(np.min(misfit[down] / -t_el[down], initial=np.inf))
+    return math.sqrt(max(lo, 0.0)), math.sqrt(hi)
 
 
 def _best_selfstress(A, t0, cap):

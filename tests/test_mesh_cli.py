@@ -32,7 +32,7 @@ def _assert_same_mesh(a, b):
         assert np.array_equal(a.elem_sets[k], b.elem_sets[k])
 
 
-@pytest.mark.parametrize("case", ["paper_web.toml", "paper_arms_tethers.toml", "demo.toml"])
+@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml"])
 def test_h5_round_trip(tmp_path, case):
     c = load(CASES / case)
     m = build_mesh(c)
@@ -81,10 +81,10 @@ def _check_outputs(out, case):
 
 
 def test_run_in_process(tmp_path):
-    args = argparse.Namespace(case=str(CASES / "paper_web.toml"), sets=[],
+    args = argparse.Namespace(case=str(CASES / "paper_free_web.toml"), sets=[],
                               output=str(tmp_path / "tmp"))
     assert mesh_cmd.run(args) == 0
-    _check_outputs(tmp_path / "tmp", "paper_web.toml")
+    _check_outputs(tmp_path / "tmp", "paper_free_web.toml")
 
 
 def _main(monkeypatch):
@@ -100,7 +100,7 @@ def _main(monkeypatch):
     return cli.main
 
 
-@pytest.mark.parametrize("case", ["paper_web.toml", "paper_arms_tethers.toml", "demo.toml"])
+@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml"])
 def test_main_mesh(tmp_path, case, monkeypatch):
     main = _main(monkeypatch)
     assert main(["mesh", str(CASES / case), "-o", str(tmp_path / "tmp")]) == 0

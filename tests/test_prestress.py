@@ -173,6 +173,12 @@ def test_six_configurations(topology):
         assert not rep.capped
     else:
         assert rep.load_residual > 1e-3 and rep.node_residual_max > 0.1
+    if rep.prestressable and rep.n_selfstress == 0:
+        assert rep.omega_band == (0.0, math.inf)   # statics alone: tension at any rate
+    elif rep.prestressable:
+        # tailored rest lengths keep every bar taut only within a few % of the design rate
+        lo, hi = rep.omega_band
+        assert 0.9 < lo < 1.0 < hi < 1.1
 
 
 def test_quadquad_hub_stiffens_mechanisms():
@@ -206,8 +212,9 @@ end = 1.0
 """
 
 
-@pytest.mark.parametrize("topology, verdict", [("tritri", "prestressable by spin"),
-                                               ("quadhex", "NOT prestressable as is")])
+@pytest.mark.parametrize("topology, verdict", [
+    ("tritri", "prestressable only with tailored rest lengths"),
+    ("quadhex", "NOT prestressable as is"), ("quadquad", "prestressable by spin: all")])
 def test_cli_report(tmp_path, capsys, topology, verdict):
     args = _cli_args(tmp_path, WEB_CASE, "--mesh-width", "12.5",
                      "--set", f'web.topology="{topology}"')

@@ -80,6 +80,11 @@ def run(args) -> int:
         stiff = ("yes" if rep.mechanisms_stiffened else
                  f"NO: {rep.n_neutral} neutral, {rep.n_negative} negative") + (
             f" (smallest eigenvalue {rep.stability_min:.4g} N/m)")
+    lo, hi = rep.omega_band
+    band = ("-" if not rep.prestressable else "every spin rate (statically determinate "
+            "for this load)" if lo == 0 and hi == float("inf") else
+            f"{lo * omega:.4g} < omega < {hi * omega:.4g} rad/s if the rest lengths "
+            "are tailored at this omega (members go slack outside)")
     note = "" if rep.load_compatible else "  (least squares: not in equilibrium)"
     lines = [
         f"topology            {w.topology} (S = {w.side:g} m, t = {w.mesh_width:g} m, "
@@ -101,6 +106,7 @@ def run(args) -> int:
         f"{rep.elastic_max_force:.6g} N, {rep.elastic_n_compressed} compressed "
         f"(cables cut stress-free to the flat shape, equal EA)",
         f"mechanisms stiffened {stiff}",
+        f"tension holds for   {band}",
         f"verdict             {rep.verdict()}",
     ]
     if rep.capped:
