@@ -35,8 +35,8 @@ class Model:
         Axial damper coefficient zeta * A * sqrt(E rho) (critical for the element mode).
     tied_idx : (k,) int64
         Nodes tied to the hub; ``tied_ref`` (k, 3) [m] their hub-frame positions.
-    contact_idx : (c,) int64
-        Nodes checked for cable-hub contact (empty when the scene has no hub contact).
+    node_contact : (n,) bool
+        Nodes checked for cable-hub contact (all False when the scene has no hub contact).
     hub_radius, hub_inertia, hub_friction : float
         r0 [m], J_hub [kg m^2], Coulomb coefficient.
     j_eff : float [kg m^2]
@@ -58,7 +58,7 @@ class Model:
     elem_cdamp: np.ndarray
     tied_idx: np.ndarray
     tied_ref: np.ndarray
-    contact_idx: np.ndarray
+    node_contact: np.ndarray
     hub_radius: float
     hub_inertia: float
     hub_friction: float
@@ -93,8 +93,7 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
     inv[tied] = 0.0
     tied_ref = np.ascontiguousarray(mesh.node_pos[tied], dtype=np.float64)
     j_eff = hub_inertia + float(np.sum(node_mass[tied] * (tied_ref[:, 0] ** 2 + tied_ref[:, 1] ** 2)))
-    free = np.flatnonzero(inv > 0)
-    contact_idx = free if (contact and r0 > 0) else np.zeros(0, np.int64)
+    node_contact = (inv > 0) & bool(contact and r0 > 0)
     m = mesh.n_elems
     c = math.sqrt(youngs_modulus / density)
     zeta = damping_ratio
@@ -106,7 +105,7 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
         elem_rest_len=np.ascontiguousarray(mesh.elem_rest_len),
         elem_ea=np.full(m, youngs_modulus * area),
         elem_cdamp=np.full(m, zeta * area * math.sqrt(youngs_modulus * density)),
-        tied_idx=tied, tied_ref=tied_ref, contact_idx=np.ascontiguousarray(contact_idx),
+        tied_idx=tied, tied_ref=tied_ref, node_contact=node_contact,
         hub_radius=float(r0), hub_inertia=float(hub_inertia), hub_friction=float(hub_friction),
         j_eff=float(j_eff), tip_idx=np.asarray(mesh.node_sets["tips"], dtype=np.int64),
         wave_speed=c, dt_critical=dt_crit)

@@ -44,10 +44,10 @@ class RunResult:
 class Workspace:
     """Preallocated buffers of the step loop."""
 
-    def __init__(self, model: Model, rows: int, probes: np.ndarray):
+    def __init__(self, model: Model, rows: int, probes: np.ndarray, threads: int = 1):
         n_probes = len(probes)
         self.probes = probes
-        self.force = np.zeros((model.n_nodes, 3))
+        self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
         self.tension = np.zeros(model.n_elems)
         self.rec = np.zeros((rows, len(kernels.REC_COLUMNS)))
         self.probe_pos = np.zeros((rows, n_probes, 3))
@@ -71,7 +71,7 @@ def _advance(model, control, state, ws, dt, nsteps, rec_every):
     return kernels.advance(
         state.pos, state.vel, state.hub, ws.force, ws.tension, model.node_inv_mass,
         model.node_mass, model.elem_nodes, model.elem_rest_len, model.elem_ea, model.elem_cdamp,
-        model.tied_idx, model.tied_ref, model.contact_idx, model.hub_radius, model.hub_friction,
+        model.tied_idx, model.tied_ref, model.node_contact, model.hub_radius, model.hub_friction,
         model.j_eff, control.code, control.params, dt, nsteps, rec_every, ws.probes,
         ws.rec, ws.probe_pos, ws.probe_vel)
 
@@ -94,6 +94,24 @@ def current_tension(model: Model, pos, vel):
     return t
 
 
+PARALLEL_MIN_ELEMENTS = 20000  # below this a parallel region costs more than it saves
+
+
+def choose_threads(model: Model, requested=None) -> int:
+    """Threads for the step loop: ``requested`` (or $SPINWEB_THREADS), else 2 for webs of at
+    least PARALLEL_MIN_ELEMENTS elements on a machine with 2+ cores, else 1. Also sets numba's
+    thread count."""
+    import numba
+
+    if requested is None and os.environ.get("SPINWEB_THREADS"):
+        requested = int(os.environ["SPINWEB_THREADS"])
+    if requested is None:
+        requested = 2 if model.n_elems >= PARALLEL_MIN_ELEMENTS else 1
+    threads = max(1, min(int(requested), numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(threads)
+    return threads
+
+
 def energy_balance(h):
     """KE + SE - W + D (should stay constant) for a history dict / row table."""
     return (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
@@ -102,11 +120,13 @@ def energy_balance(h):
 
 def simulate(model: Model, control: Control, state: State, dt: float, t_end: float,
              history_dt: float, frame_dt: float = 0.0, on_rows=None, on_frame=None,
-             progress=None, energy_limit=ENERGY_LIMIT) -> RunResult:
+             progress=None, energy_limit=ENERGY_LIMIT, threads=None) -> RunResult:
     """Integrate from ``state`` (initial velocities v_0) to ``t_end``.
 
     Parameters
     ----------
+    threads : int or None
+        Threads of the step loop (None: ``choose_threads``).
     on_rows : callable(dict) or None
         Called with each chunk of history rows (name -> array).
     on_frame : callable(t, pos, vel, tension) or None
@@ -117,7 +137,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, t_end: flo
     n_total = int(math.ceil(t_end / dt - 1e-9))
     frame_every = max(1, round(frame_dt / dt)) if frame_dt > 0 else 0
     tracker = ArmTracker(model.mesh, model.hub_radius)
-    ws = Workspace(model, ROWS_PER_CHUNK + 1, tracker.probes)
+    threads = choose_threads(model, threads)
+    ws = Workspace(model, ROWS_PER_CHUNK + 1, tracker.probes, threads)
     t_compile = time.perf_counter()
     start(model, control, state, dt)
     _advance(model, control, State(state.pos.copy(), state.vel.copy(), state.hub.copy()),
