@@ -10,7 +10,9 @@ Central differences with half-step velocities (Kratos / LS-DYNA style):
     tied nodes : x = R(theta_{n+1}) x_hub
 
 Every kernel and the helpers it calls live in this module (``cache=True`` does not see
-edits to jitted helpers in other files). Constants come in as arguments.
+edits to jitted helpers in other files). Constants come in as arguments. The hot loop uses
+``error_model="numpy"`` so that divisions carry no Python zero-division check (a branch per
+element); its divisor is never zero.
 """
 
 from __future__ import annotations
@@ -192,7 +194,7 @@ def place_tied(pos, vel, tied_idx, tied_ref, theta, omega):
         vel[i, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force, lo, hi,
                         record):
     """Hot loop: tension-only element forces of elements lo..hi-1 added into ``force`` (n,3).
