@@ -15,7 +15,8 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/spinweb run cases/demo.toml -o out/demo
 	$(BIN)/spinweb plot out/demo/results.h5 -o out/demo/plot.png
-	@echo "results: out/demo/results.h5, ParaView: out/demo/web.pvd, plot: out/demo/plot.png"
+	$(BIN)/spinweb render out/demo/results.h5 -o out/demo/web.png
+	@echo "results: out/demo/results.h5, ParaView: out/demo/web.pvd, plot: out/demo/plot.png, picture: out/demo/web.png"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -2,15 +2,19 @@
 
     .venv/bin/python docs/render_mesh.py [--matplotlib]
 
+    .venv/bin/python docs/render_mesh.py --ties axes --suffix _axes   # the 4-node ties
+
 Uses pyvista off-screen; falls back to matplotlib when no OpenGL context is available
 (or with ``--matplotlib``). Writes mesh_flat.png (deployed), mesh_star.png (star fold
 before coiling) and mesh_folded.png (star fold coiled trailing on the hub: the initial
-state of cases/paper_free_web.toml).
+state of cases/paper_free_web.toml), with the case's hub ties (default ``frame``: the
+whole boundary of the cut-out is tied, black dots).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 from pathlib import Path
 
@@ -87,15 +91,26 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default=str(HERE.parent / "cases" / "paper_free_web.toml"))
     ap.add_argument("--matplotlib", action="store_true", help="skip pyvista")
+    ap.add_argument("--ties", choices=("frame", "axes"), default=None,
+                    help="override fold.ties (default: the case's, i.e. frame)")
+    ap.add_argument("--suffix", default="", help="appended to the file names")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    folded = build_mesh(load(args.case))
+    case = load(args.case)
+    if args.ties is not None:
+        case = dataclasses.replace(case, fold=dataclasses.replace(case.fold, ties=args.ties))
+    ties = case.fold.ties
+    folded = build_mesh(case)
     star = star_fold(folded)
     out = HERE / "img"
     out.mkdir(exist_ok=True)
-    jobs = [("mesh_flat.png", folded.node_ref, "flat (deployed) web, S = 100 m, t = 2.5 m"),
-            ("mesh_star.png", star.node_pos, "star fold before coiling (arms radial)"),
-            ("mesh_folded.png", folded.node_pos, "star fold coiled trailing on the hub")]
+    w = case.web
+    jobs = [(f"mesh_flat{args.suffix}.png", folded.node_ref,
+             f"flat (deployed) web, S = {w.side:g} m, t = {w.mesh_width:g} m, ties: {ties}"),
+            (f"mesh_star{args.suffix}.png", star.node_pos,
+             f"star fold before coiling (arms radial), ties: {ties}"),
+            (f"mesh_folded{args.suffix}.png", folded.node_pos,
+             f"star fold coiled {case.fold.wrap} on the hub, ties: {ties}")]
     renderer = render_matplotlib if args.matplotlib else render_pyvista
     for name, pos, title in jobs:
         try:

@@ -16,7 +16,7 @@ _WEB_KEYS = {"side": "web.side", "mesh_width": "web.mesh_width",
              "elements_per_segment": "web.elements_per_segment",
              "hub_cutout": "web.hub_cutout", "hub_radius": "hub.radius",
              "topology": "web.topology", "pattern": "fold.pattern", "wrap": "fold.wrap",
-             "corner_mass": "tip_mass.mass"}
+             "ties": "fold.ties", "corner_mass": "tip_mass.mass"}
 _TETHER_KEYS = {"count": "tethers.count", "length": "tethers.length",
                 "elements": "tethers.elements", "hub_radius": "hub.radius",
                 "tip_mass": "tip_mass.mass", "pattern": "fold.pattern", "wrap": "fold.wrap"}
@@ -24,6 +24,9 @@ _TETHER_KEYS = {"count": "tethers.count", "length": "tethers.length",
 
 def build_mesh(case) -> Mesh:
     """Initial mesh of a case: flat web -> (star fold + coil | flat), or tethers.
+
+    A quadquad web is tied to the hub as ``fold.ties`` says (``frame``: the whole
+    boundary of the cut-out; ``axes``: its 4 nodes on the axes), see docs/mesh.md.
 
     Parameters
     ----------
@@ -68,7 +71,7 @@ def _build_web(case) -> Mesh:
                              f"(web.topology = '{web.topology}'); use fold.pattern = 'flat'")
     if web.topology == "quadquad":
         flat = flat_web(web, case.tip_mass.mass, resolved_cutout(case))
-        return fold_web(flat, hub.radius, case.fold.pattern, case.fold.wrap)
+        return fold_web(flat, hub.radius, case.fold.pattern, case.fold.wrap, case.fold.ties)
     # other topologies: their generator cuts a disc of this radius and ties its rim
     cut = hub.radius if web.hub_cutout is None else web.hub_cutout
     return _tie_innermost(flat_web(web, case.tip_mass.mass, cut), hub.radius)

@@ -81,6 +81,7 @@ class ArmTracker:
             roots = np.arctan2(ref[:, 1], ref[:, 0])
         self.root = np.asarray(roots, float)
         self.r0 = float(r0)
+        self.prev_phi = np.full(self.n, np.nan)  # for a continuous (unwrapped) free-arm angle
 
     def update(self, probe_pos, probe_vel, hub_angle):
         """(T, p, 3) probe positions / velocities and (T,) hub angle -> (L, phi, omega_tip),
@@ -105,6 +106,7 @@ class ArmTracker:
             for t in range(T):
                 L[t, k], phi[t, k] = self._measure(k, t, hub_angle[t], tip_p[t, k], sp[t], sel,
                                                    lev, int(run[t]), gap)
+                self.prev_phi[k] = phi[t, k]
         px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)
         omega_tip = (px * tip_v[..., 1] - py * tip_v[..., 0]) / r2
@@ -134,4 +136,8 @@ class ArmTracker:
             if alpha > 0:
                 return length, -sense * (0.5 * math.pi + alpha)
         qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
-        return math.hypot(qx, qy), math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
+        phi = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
+        prev = self.prev_phi[k]
+        if prev == prev:  # continuous in time: the 2 pi branch nearest the previous row
+            phi += 2 * math.pi * round((prev - phi) / (2 * math.pi))
+        return math.hypot(qx, qy), phi

@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import os
 import time
+import uuid
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from spinweb_fe.checkpoint import CHECKPOINT_NAME
+from spinweb_fe.errors import InputError
 from spinweb_fe.io_mesh import write_mesh_group, write_vtu
 from spinweb_fe.results import HISTORY_DOC, HISTORY_UNITS, write_root_attrs
 
@@ -27,6 +30,38 @@ def write_pvd(path: Path, entries):
     os.replace(tmp, path)
 
 
+def check_results_for_restart(out_dir, ck):
+    """Check (read-only) that ``out_dir/results.h5`` can be continued from checkpoint ``ck``.
+
+    Raises
+    ------
+    InputError
+        If the file is missing or unreadable, belongs to another run (``run_id``), or holds
+        fewer history rows or frames than the checkpoint counts, or another time step.
+    """
+    path = Path(out_dir) / "results.h5"
+    if not path.is_file():
+        raise InputError(path, "", "no such file: nothing to continue")
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(path, "", f"not a readable HDF5 file ({exc})") from None
+    with h5:
+        if h5.attrs.get("run_id") != ck.run_id:
+            raise InputError(path, "run_id", "the results are not those of the checkpoint's run")
+        if float(h5.attrs.get("dt", float("nan"))) != ck.dt:
+            raise InputError(path, "dt", f"differs from the checkpoint's dt = {ck.dt!r} s")
+        rows = {name: ds.shape[0] for name, ds in h5.get("history", {}).items()}
+        short = [name for name, k in rows.items() if k < ck.history_rows]
+        if ck.history_rows and (short or not rows):
+            raise InputError(path, "history", f"holds fewer rows than the checkpoint's "
+                             f"{ck.history_rows}: results and checkpoint do not belong together")
+        n_frames = h5["frames/time"].shape[0] if "frames/time" in h5 else 0
+        if n_frames < ck.frames:
+            raise InputError(path, "frames", f"holds {n_frames} frames, the checkpoint "
+                             f"counts {ck.frames}")
+
+
 class ResultWriter:
     """Owns results.h5 and the ParaView collection of one run.
 
@@ -34,18 +69,42 @@ class ResultWriter:
     early leaves a readable file with everything recorded so far.
     """
 
-    def __init__(self, out_dir, case, model, dt, write_frames=True):
+    def __init__(self, out_dir, case, model, dt, write_frames=True, resume=None):
+        """Create ``results.h5`` (or, with ``resume``, reopen it to continue a run).
+
+        Parameters
+        ----------
+        out_dir : str or Path
+            Result folder (created if needed).
+        case : spinweb_fe.case.Case
+            The validated case (stored as the root attribute ``case``).
+        model : spinweb_fe.model.Model
+        dt : float [s]
+        write_frames : bool
+            Write ``/frames``, the VTU files and ``web.pvd``.
+        resume : spinweb_fe.checkpoint.Checkpoint or None
+            Continue the run of this checkpoint: ``/history`` and ``/frames`` are cut back
+            to the checkpoint's row counts, later VTU files are removed, the collection is
+            rewritten from the checkpoint's entries, and new rows are appended.
+        """
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.model = model
         self.t0 = time.perf_counter()
-        self.h5 = h5py.File(self.dir / "results.h5", "w")
-        write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
-                         dt_critical=model.dt_critical, status="running")
-        write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.node_mass)
-        self.hist = self.h5.create_group("history")
         self.frames = None
         self.pvd_entries = []
+        self.rows = 0
+        if resume is not None:
+            self._reopen(case, resume, write_frames)
+            return
+        # a checkpoint left by an earlier run in this folder belongs to results we overwrite
+        (self.dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+        self.h5 = h5py.File(self.dir / "results.h5", "w")
+        self.run_id = uuid.uuid4().hex
+        write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
+                         dt_critical=model.dt_critical, status="running", run_id=self.run_id)
+        write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.node_mass)
+        self.hist = self.h5.create_group("history")
         if write_frames:
             (self.dir / "frames").mkdir(exist_ok=True)
             for old in (self.dir / "frames").glob("web_*.vtu"):
@@ -56,6 +115,30 @@ class ResultWriter:
             self._new(g, "position", (0, n, 3), "m")
             self._new(g, "tension", (0, m), "N")
             self.frames = g
+        self.h5.flush()
+
+    def _reopen(self, case, ck, write_frames):
+        self.h5 = h5py.File(self.dir / "results.h5", "r+")
+        self.run_id = ck.run_id
+        self.hist = self.h5.require_group("history")
+        for ds in self.hist.values():
+            ds.resize(ck.history_rows, axis=0)
+        self.rows = ck.history_rows
+        if write_frames and "frames" in self.h5:
+            self.frames = self.h5["frames"]
+            for ds in self.frames.values():
+                ds.resize(ck.frames, axis=0)
+            self.pvd_entries = list(ck.pvd_entries)
+            (self.dir / "frames").mkdir(exist_ok=True)
+            keep = {f for _, f in self.pvd_entries}
+            for old in (self.dir / "frames").glob("web_*.vtu"):
+                if f"frames/{old.name}" not in keep:
+                    old.unlink()
+            write_pvd(self.dir / "web.pvd", self.pvd_entries)
+        self.h5.attrs["case"] = case.to_toml()
+        self.h5.attrs["status"] = "running"
+        self.h5.attrs["restarted_at_time"] = ck.time
+        self.h5.attrs["restarted_at_step"] = ck.steps
         self.h5.flush()
 
     @staticmethod
@@ -79,6 +162,7 @@ class ResultWriter:
             k = ds.shape[0]
             ds.resize(k + len(arr), axis=0)
             ds[k:] = arr
+        self.rows += len(rows["time"]) if "time" in rows else 0
         self.h5.flush()
 
     def write_frame(self, t, pos, vel, tension):

@@ -16,7 +16,10 @@ change shape ("distort") before it can carry the load. Among all the equilibrium
     maximise  tau  subject to  A t = A t0,  t >= tau,  |t| <= cap max|t0|
 
 (scipy's HiGHS) finds the combination with the largest minimum tension. The web is
-prestressable by spin if the load is compatible and that minimum is positive.
+prestressable by spin if the load is compatible and that minimum is positive. Such a
+combination needs tailored rest lengths; the report also gives the elastic solution of a
+web cut stress-free to its flat shape (compatibility ``S^T F t = 0``, F = diag(L/EA)) and
+the band of spin rates over which the tailored web stays taut.
 
 Supports: if the mesh has at least two ``hub_tied`` nodes they are fixed (a rigid hub: a
 rigid body takes any self-balanced set of forces, which is exactly what fixed nodes give,
@@ -28,7 +31,7 @@ a balanced load). Either way the counts s and m refer to the web alone.
 
 Use the web without collinear subdivision (``elements_per_segment = 1``): each extra node
 on a straight cable adds one trivial transverse mechanism and one dof. The dense SVD costs
-O(dof * b * min(dof, b)) time and O(b^2) memory: a few seconds up to ~3000 bars.
+O(dof * b * min(dof, b)) time and O(max(dof, b)^2) memory: 5-25 s at ~3000 bars.
 
 A mechanism that the load does not excite may still be stiffened by the tensions. With
 ``stability = True`` the reduced tangent stiffness on the mechanism space,
@@ -49,6 +52,7 @@ from scipy.optimize import linprog
 from scipy.sparse import csr_matrix, hstack, identity
 
 from meshgen.mesh import Mesh, lumped_mass
+from spinweb_fe.errors import RunError
 
 log = logging.getLogger(__name__)
 
@@ -338,7 +342,7 @@ def _best_selfstress(A, t0, cap):
     res = linprog(c, A_ub=A_ub, b_ub=np.zeros(b), A_eq=A_eq, b_eq=rhs, bounds=bounds,
                   method="highs")
     if res.status != 0:
-        raise RuntimeError(f"prestress LP failed: {res.message}")
+        raise RunError(f"prestress LP failed: {res.message}")
     tau = res.x[-1]
     # second stage: keep min(t) >= tau, make max(t) as small as possible (unique spread)
     A_ub2 = hstack([identity(b), -np.ones((b, 1))]).tocsr()

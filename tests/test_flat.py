@@ -37,6 +37,11 @@ def test_counts_closed_form(side, t, k, cut):
     m = flat_quadquad(side, t, k, 0.0, cut)
     assert (m.n_nodes, m.n_elems) == _closed_form(side, t, k, c)
     assert check_mesh(m) == []
+    # the hole boundary (tied to the hub by fold.ties = 'frame'): a loop of 8 c k / t nodes
+    hole = m.node_sets["hole_boundary"]
+    assert len(hole) == (round(8 * c * k / t) if c > 0 else 0)
+    if c > 0:
+        assert np.allclose(np.max(np.abs(m.node_ref[hole, :2]), axis=1), c, rtol=1e-12)
     assert np.allclose(m.elem_rest_len, t / k, rtol=1e-12)
     xy = m.node_ref[:, :2]
     assert np.all(np.max(np.abs(xy), axis=1) >= c - 1e-9)   # nothing inside the cut-out

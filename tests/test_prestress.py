@@ -230,3 +230,17 @@ def test_cli_tethers_rejected(tmp_path):
     args = _cli_args(tmp_path, "[tethers]\ncount = 4\n[time]\nend = 1.0\n")
     with pytest.raises(InputError, match="tethers scene has no web to prestress"):
         prestress_cli.run(args)
+
+
+def test_cli_main_exit_codes(tmp_path, capsys):
+    from spinweb_fe.cli import main
+
+    web = tmp_path / "web.toml"
+    web.write_text(WEB_CASE)
+    assert main(["prestress", str(web), "--mesh-width", "25"]) == 0
+    tethers = tmp_path / "tethers.toml"
+    tethers.write_text("[tethers]\ncount = 4\n[time]\nend = 1.0\n")
+    assert main(["prestress", str(tethers)]) == 2
+    assert main(["prestress", str(web), "--mesh-width", "80"]) == 2
+    err = capsys.readouterr().err
+    assert "tethers scene has no web to prestress" in err and "--mesh-width" in err

@@ -106,7 +106,8 @@ def test_symmetry(topology):
 
 @pytest.mark.parametrize("topology", TOPOLOGIES)
 def test_cable_length_per_area(topology):
-    """Interior cable length / web area tends to the lattice value (2 sqrt3/t, 2/t, 2/(sqrt3 t))."""
+    """Interior cable length / web area tends to the lattice value
+    (2 sqrt3/t, 2/t, 2/(sqrt3 t))."""
     shape, _ = _shape_cell(topology)
     side, t = 100.0, 2.0
     m = flat_other(topology, side, t)

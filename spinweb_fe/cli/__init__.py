@@ -10,12 +10,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import sys
 
 from spinweb_fe import __version__
 from spinweb_fe.errors import InputError, RunError
 
-COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "info")
+COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "info", "render", "sweep")
 log = logging.getLogger("spinweb")
 
 
@@ -38,12 +39,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line(text) -> str:
+    """The message on one line: control characters (newlines from a key or value) escaped."""
+    return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], str(text))
+
+
 def main(argv=None) -> int:
     """Run the CLI; returns the exit code instead of exiting."""
     try:
         args = build_parser().parse_args(argv)
     except InputError as exc:
-        print(f"spinweb: error: {exc}", file=sys.stderr)
+        print(f"spinweb: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except SystemExit as exc:  # --help / --version
         return int(exc.code or 0)
@@ -52,13 +58,17 @@ def main(argv=None) -> int:
     try:
         return int(args._run(args) or 0)
     except InputError as exc:
-        print(f"spinweb: error: {exc}", file=sys.stderr)
+        print(f"spinweb: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except RunError as exc:
-        print(f"spinweb: run failed: {exc}", file=sys.stderr)
+    except RunError as exc:  # solver.RunInterrupted (a signal) carries ``signame``
+        what = "" if getattr(exc, "signame", None) else "run failed: "
+        print(f"spinweb: {what}{_one_line(exc)}", file=sys.stderr)
         return 1
     except OSError as exc:
-        print(f"spinweb: run failed: I/O error: {exc}", file=sys.stderr)
+        print(f"spinweb: run failed: I/O error: {_one_line(exc)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:  # SIGINT outside the step loop (mesh, compile)
+        print("spinweb: interrupted by SIGINT", file=sys.stderr)
         return 1
 
 

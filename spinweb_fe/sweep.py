@@ -1,0 +1,391 @@
+"""Parameter sweeps: many runs of one base case, executed with Dask, one summary table.
+
+A sweep file (TOML, see docs/sweep.md)::
+
+    title = "hub radius and spin"
+    base = "../paper_free_web.toml"   # relative to the sweep file
+    mode = "fe"                       # fe | analytic
+    model = "consistent"              # analytic only: printed | consistent
+    [set]                             # applied to every run
+    time.end = 0.5
+    [grid]                            # cartesian product of the lists
+    hub.radius = [4.0, 6.3]
+    initial.omega = [12.566, 25.133]
+    [[runs]]                          # and/or explicit override tables
+    name = "slow"                     # optional directory label
+    initial.omega = 6.283
+
+Every run's case is built (base + [set] + its [[runs]] entry + its grid point) and
+validated before anything runs: an invalid sweep raises :class:`InputError`. Each run is
+one Dask task (:func:`run_one`) writing ``DIR/runs/<index>_<slug>/`` and returning its
+metrics (:func:`history_metrics`); a failing run is recorded with its error in
+``status``, not raised. :mod:`spinweb_fe.sweep_report` writes ``summary.csv``,
+``summary.h5`` and ``summary.png``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import difflib
+import itertools
+import logging
+import math
+import re
+import time
+import tomllib
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from spinweb_fe.case import validate
+from spinweb_fe.errors import InputError, RunError
+
+log = logging.getLogger("spinweb")
+
+MODES = ("fe", "analytic")
+MODELS = ("consistent", "printed")
+TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs")
+DEPLOYED = 0.95  # fully deployed: every arm at least this fraction of the free length
+RECOILED = 0.5   # re-coiled: after full deployment, some arm shorter than this fraction
+#: metric columns: (name, units, description)
+METRICS = (
+    ("deploy_time_s", "s", "first time every arm_length >= 0.95 free length (NaN: never)"),
+    ("peak_hub_torque_Nm", "N m", "largest |hub_torque|"),
+    ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
+    ("max_tension_N", "N", "largest max_tension of the run"),
+    ("recoiled", "1", "1 if some arm_length < 0.5 free length after full deployment"),
+    ("wall_time_s", "s", "wall-clock time of the run (task)"),
+)
+#: metrics drawn in summary.png, with their axis labels
+PLOTTED = {"deploy_time_s": "time to full deployment [s]",
+           "peak_hub_torque_Nm": "peak |hub torque| [N m]",
+           "final_hub_omega_rad_s": "final hub rate [rad/s]", "max_tension_N": "max tension [N]"}
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a sweep: ``values`` of the swept keys, all ``overrides``, the case dict."""
+
+    index: int
+    name: str
+    values: dict
+    overrides: dict
+    raw: dict
+    label: str = ""  # the name of its [[runs]] entry, if given
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A validated sweep file."""
+
+    source: Path
+    title: str
+    base: Path
+    mode: str
+    model: str
+    keys: tuple
+    runs: tuple
+    text: str
+    grid: tuple = ()  # the [grid] keys (the first of ``keys``)
+
+
+def flatten(table: dict, prefix: str = "") -> dict:
+    """Nested TOML tables -> dotted keys: ``{'hub': {'radius': 1}} -> {'hub.radius': 1}``."""
+    out = {}
+    for k, v in table.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def apply(raw: dict, overrides: dict, src, where) -> dict:
+    """A deep copy of the case dict ``raw`` with dotted ``overrides`` set."""
+    raw = copy.deepcopy(raw)
+    for dotted, value in overrides.items():
+        node = raw
+        parts = dotted.split(".")
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise InputError(src, f"{where}.{dotted}", f"'{p}' is not a table of the case")
+        node[parts[-1]] = value
+    return raw
+
+
+def _clean(text: str, width: int = 48) -> str:
+    return re.sub(r"[^A-Za-z0-9.=+_-]+", "-", text)[:width].strip("-_") or "run"
+
+
+def _slug(values: dict) -> str:
+    """Directory label of a run: ``radius=2_omega=12.57`` (last part of each key)."""
+    return _clean("_".join(f"{k.split('.')[-1]}={v:.4g}" if isinstance(v, float)
+                           else f"{k.split('.')[-1]}={v}" for k, v in values.items()) or "base")
+
+
+def _read_toml(path: Path, what: str) -> dict:
+    if not path.is_file():
+        raise InputError(path, "", f"no such {what}")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+
+
+def _scalar(src, key, v):
+    if isinstance(v, (dict, list)):
+        raise InputError(src, key, f"expected a single value, got {v!r}")
+    return v
+
+
+def load_sweep(path, mode=None, sets=()) -> Sweep:
+    """Read a sweep file, build and validate every run.
+
+    Parameters
+    ----------
+    path : str or Path
+    mode : {'fe', 'analytic'}, optional
+        Overrides the file's ``mode``.
+    sets : iterable of str
+        ``key=value`` overrides (TOML values) added to ``[set]``.
+
+    Raises
+    ------
+    InputError
+        Unknown keys, a missing base case, empty grid lists, a key both in [grid] and
+        [[runs]], or any run whose case does not validate (named by index and key).
+    """
+    from spinweb_fe.case import parse_set
+
+    src = Path(path)
+    doc = _read_toml(src, "sweep file")
+    for key in doc:
+        if key not in TOP_KEYS:
+            near = difflib.get_close_matches(key, TOP_KEYS, n=1, cutoff=0.5)
+            hint = f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(TOP_KEYS)})"
+            raise InputError(src, key, "unknown key" + hint)
+    if not isinstance(doc.get("base"), str):
+        raise InputError(src, "base", "missing: the base case file, relative to the sweep file")
+    base = (src.parent / doc["base"]).resolve()
+    mode = mode or doc.get("mode", "fe")
+    if mode not in MODES:
+        raise InputError(src, "mode", f"unknown mode '{mode}' (valid: {', '.join(MODES)})")
+    model = doc.get("model", "consistent")
+    if model not in MODELS:
+        raise InputError(src, "model", f"unknown model '{model}' (valid: {', '.join(MODELS)})")
+    for name in ("set", "grid"):
+        if not isinstance(doc.get(name, {}), dict):
+            raise InputError(src, name, f"must be a table [{name}]")
+    common = {k: _scalar(src, f"set.{k}", v) for k, v in flatten(doc.get("set", {})).items()}
+    for arg in sets or ():
+        parts, value = parse_set(arg)
+        common[".".join(parts)] = value
+    grid = flatten(doc.get("grid", {}))
+    for k, v in grid.items():
+        if not isinstance(v, list) or not v:
+            raise InputError(src, f"grid.{k}", "must be a non-empty list of values")
+        for x in v:
+            _scalar(src, f"grid.{k}", x)
+    entries = doc.get("runs", [{}])
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise InputError(src, "runs", "must be an array of tables [[runs]]")
+    entries = [flatten(e) for e in entries] or [{}]
+    run_keys = list(dict.fromkeys(k for e in entries for k in e if k != "name"))
+    for k in run_keys:
+        if k in grid:
+            raise InputError(src, f"grid.{k}", "also set in [[runs]]: give it in one place")
+    keys = tuple(list(grid) + run_keys)
+    base_raw = _read_toml(base, "base case")
+    points = [dict(zip(grid, combo)) for combo in itertools.product(*grid.values())]
+    combos = [(i, e, g) for i, e in enumerate(entries) for g in points]
+    width = max(3, len(str(len(combos) - 1)))
+    runs = []
+    for index, (i_entry, entry, point) in enumerate(combos):
+        own = {k: _scalar(src, f"runs[{i_entry}].{k}", v)
+               for k, v in entry.items() if k != "name"}
+        overrides = {**common, **own, **point}
+        where = f"run {index}"
+        raw = apply(base_raw, overrides, src, where)
+        try:
+            resolved = flatten(validate(raw, str(base)).to_dict())
+        except InputError as exc:
+            raise InputError(src, f"{where}: {exc.key}" if exc.key else where,
+                             exc.reason) from None
+        values = {k: resolved.get(k, overrides.get(k)) for k in keys}
+        label = entry.get("name")
+        slug = _slug(values) if label is None else _clean(
+            "_".join([str(label)] + ([_slug(point)] if point else [])))
+        runs.append(Run(index, f"{index:0{width}d}_{slug}", values, overrides, raw,
+                        "" if label is None else str(label)))
+    return Sweep(src, str(doc.get("title", "")), base, mode, model, keys, tuple(runs),
+                 src.read_text(encoding="utf-8"), tuple(grid))
+
+
+def history_metrics(h: dict, free_length: float) -> dict:
+    """Metrics of one run from its ``/history`` (see METRICS and docs/sweep.md).
+
+    Parameters
+    ----------
+    h : dict
+        ``time (T,)``, ``arm_length (T, n)``, ``hub_torque``, ``hub_omega``,
+        ``max_tension (T,)``.
+    free_length : float [m]
+        Length of a fully deployed arm (FE: mesh arm_length - arm_root_coord; analytic: H).
+    """
+    t = np.asarray(h["time"])
+    arm = np.asarray(h["arm_length"]).reshape(len(t), -1)
+    full = np.all(arm >= DEPLOYED * free_length, axis=1)
+    if full.any():
+        i = int(np.argmax(full))
+        t_dep = float(t[i])
+        recoiled = float(np.any(arm[i:] < RECOILED * free_length))
+    else:
+        t_dep, recoiled = math.nan, 0.0
+    return {"deploy_time_s": t_dep,
+            "peak_hub_torque_Nm": float(np.max(np.abs(h["hub_torque"]))),
+            "final_hub_omega_rad_s": float(h["hub_omega"][-1]),
+            "max_tension_N": float(np.max(h["max_tension"])),
+            "recoiled": recoiled}
+
+
+def fe_metrics(path) -> dict:
+    """:func:`history_metrics` of an FE ``results.h5`` (free length from ``/mesh`` attrs)."""
+    import h5py
+
+    with h5py.File(path, "r") as h5:
+        a = h5["mesh"].attrs
+        free = float(a["arm_length"]) - float(a["arm_root_coord"])
+        h = {k: h5["history"][k][()] for k in
+             ("time", "arm_length", "hub_torque", "hub_omega", "max_tension")}
+    return history_metrics(h, free)
+
+
+def run_one(task: dict) -> dict:
+    """Run one case of a sweep (a Dask task) and return its metrics, wall time and status.
+
+    ``task``: ``raw`` (case dict), ``source`` (base case path), ``mode``, ``model`` and
+    ``out_dir``. Never raises: an error becomes ``status`` (one line); the traceback and
+    the run's log go to ``out_dir/run.log``.
+    """
+    t0 = time.perf_counter()
+    out = Path(task["out_dir"])
+    out.mkdir(parents=True, exist_ok=True)
+    spin_log = logging.getLogger("spinweb")
+    handler = logging.FileHandler(out / "run.log", mode="w")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    saved = spin_log.propagate, spin_log.level
+    spin_log.addHandler(handler)
+    spin_log.propagate, spin_log.level = False, logging.INFO
+    try:
+        case = validate(task["raw"], task["source"])
+        if task["mode"] == "fe":
+            from spinweb_fe.solver import run_case
+
+            run_case(case, out, progress=False)
+            metrics = fe_metrics(out / "results.h5")
+        else:
+            from spinweb_fe import analytic
+
+            res = analytic.run_case(case, model=task["model"])
+            analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
+            if res.stopped:
+                raise RunError(res.stopped, time=float(res.history["time"][-1]))
+            metrics = history_metrics(res.history, res.params.H)
+        status = "ok"
+    except Exception as exc:  # recorded, not fatal: the sweep goes on
+        spin_log.error("run failed:\n%s", traceback.format_exc())
+        metrics = {name: math.nan for name, _, _ in METRICS}
+        status = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    finally:
+        spin_log.removeHandler(handler)
+        handler.close()
+        spin_log.propagate, spin_log.level = saved
+    return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
+
+
+def _failed(exc) -> dict:
+    row = {name: math.nan for name, _, _ in METRICS}
+    row["status"] = f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
+    return row
+
+
+def execute(sweep: Sweep, out_dir, scheduler=None, workers=2, progress=True) -> list:
+    """Run every case of ``sweep`` on Dask; return one row dict per run (index order).
+
+    Parameters
+    ----------
+    out_dir : Path
+        Sweep folder; run ``i`` writes ``out_dir/runs/<name>/``. With ``scheduler`` it must
+        be on a file system that the workers share.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); default: a LocalCluster
+        of ``workers`` processes with one thread each.
+    """
+    with _quiet_dask():
+        return _execute(sweep, Path(out_dir).resolve(), scheduler, workers, progress)
+
+
+@contextlib.contextmanager
+def _quiet_dask():
+    """Dask's own log lines (nanny, scheduler, comms) off while the sweep runs: a lost
+    worker shows as a failed run in the summary."""
+    import distributed  # noqa: F401  (creates its loggers)
+
+    names = ["distributed", *(n for n in logging.root.manager.loggerDict
+                              if n.startswith("distributed."))]
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
+
+
+def _execute(sweep, out_dir, scheduler, workers, progress):
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    try:
+        if scheduler:
+            client = Client(scheduler, timeout="10s")
+        else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.WARNING)
+            client = Client(cluster)
+    except (OSError, TimeoutError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise RunError(f"cannot start or reach the Dask cluster "
+                       f"{scheduler or '(local)'}: {exc}") from None
+    rows = [None] * len(sweep.runs)
+    try:
+        log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
+                 scheduler or f"a local Dask cluster of {workers} worker process(es)")
+        futures = {}
+        for run in sweep.runs:
+            task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
+                    "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
+            fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
+            futures[fut] = run.index
+        for done, fut in enumerate(as_completed(futures), start=1):
+            i = futures[fut]
+            try:
+                rows[i] = fut.result()
+            except Exception as exc:  # the worker died or the task was lost
+                rows[i] = _failed(exc)
+            if progress:
+                log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
+                         rows[i]["status"], rows[i].get("wall_time_s", math.nan))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return rows
+
