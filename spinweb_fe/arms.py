@@ -62,6 +62,17 @@ def arm_probes(mesh):
             np.asarray(s_coord, float))
 
 
+def deployed_length(mesh) -> np.ndarray:
+    """(n_arms,) [m] arm length L of the fully deployed (flat, reference) state: the distance
+    from each arm's root point on the rim to its tip in ``node_ref`` (a tether: H; a
+    star-folded web arm: the flat web's corner distance from the rim, a sqrt(2) - r0)."""
+    tips = np.asarray(mesh.node_sets["tips"])
+    ang = mesh.arm_root_angle if mesh.n_arms == len(tips) else np.arctan2(
+        mesh.node_ref[tips, 1], mesh.node_ref[tips, 0])
+    root = mesh.hub_radius * np.column_stack([np.cos(ang), np.sin(ang)])
+    return np.hypot(*(mesh.node_ref[tips, :2] - root).T)
+
+
 class ArmTracker:
     """Turns recorded probe positions / velocities into L, phi, omega_tip per arm.
 

@@ -48,15 +48,15 @@ log = logging.getLogger("spinweb")
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
 TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs")
-DEPLOYED = 0.95  # fully deployed: every arm at least this fraction of the free length
+DEPLOYED = 0.95  # fully deployed: every arm at least this fraction of its deployed length
 RECOILED = 0.5   # re-coiled: after full deployment, some arm shorter than this fraction
 #: metric columns: (name, units, description)
 METRICS = (
-    ("deploy_time_s", "s", "first time every arm_length >= 0.95 free length (NaN: never)"),
+    ("deploy_time_s", "s", "first time every arm_length >= 0.95 deployed length (NaN: never)"),
     ("peak_hub_torque_Nm", "N m", "largest |hub_torque|"),
     ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
     ("max_tension_N", "N", "largest max_tension of the run"),
-    ("recoiled", "1", "1 if some arm_length < 0.5 free length after full deployment"),
+    ("recoiled", "1", "1 if some arm_length < 0.5 deployed length after full deployment"),
     ("wall_time_s", "s", "wall-clock time of the run (task)"),
 )
 #: metrics drawn in summary.png, with their axis labels
@@ -234,8 +234,9 @@ def history_metrics(h: dict, free_length: float) -> dict:
     h : dict
         ``time (T,)``, ``arm_length (T, n)``, ``hub_torque``, ``hub_omega``,
         ``max_tension (T,)``.
-    free_length : float [m]
-        Length of a fully deployed arm (FE: mesh arm_length - arm_root_coord; analytic: H).
+    free_length : float or (n,) [m]
+        Length L of each fully deployed arm (FE: spinweb_fe.arms.deployed_length, the flat
+        web's root-to-tip distance; analytic: H).
     """
     t = np.asarray(h["time"])
     arm = np.asarray(h["arm_length"]).reshape(len(t), -1)
@@ -254,12 +255,14 @@ def history_metrics(h: dict, free_length: float) -> dict:
 
 
 def fe_metrics(path) -> dict:
-    """:func:`history_metrics` of an FE ``results.h5`` (free length from ``/mesh`` attrs)."""
+    """:func:`history_metrics` of an FE ``results.h5`` (deployed lengths from ``/mesh``)."""
     import h5py
 
+    from spinweb_fe.arms import deployed_length
+    from spinweb_fe.io_mesh import read_mesh_group
+
     with h5py.File(path, "r") as h5:
-        a = h5["mesh"].attrs
-        free = float(a["arm_length"]) - float(a["arm_root_coord"])
+        free = deployed_length(read_mesh_group(h5["mesh"]))
         h = {k: h5["history"][k][()] for k in
              ("time", "arm_length", "hub_torque", "hub_omega", "max_tension")}
     return history_metrics(h, free)
