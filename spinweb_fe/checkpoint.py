@@ -34,6 +34,7 @@ import numpy as np
 from spinweb_fe import __version__
 from spinweb_fe.errors import InputError
 from spinweb_fe.model import State
+from spinweb_fe.results import open_h5
 
 CHECKPOINT_NAME = "checkpoint.h5"
 CHECKPOINT_FORMAT = "spinweb-checkpoint"
@@ -153,13 +154,7 @@ def read_checkpoint(path) -> Checkpoint:
         If the file is missing, not a spinweb checkpoint, or incomplete.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "", "no checkpoint here (run with --checkpoint-dt to write one)")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
-    with h5:
+    with open_h5(path, "no checkpoint here (run with --checkpoint-dt to write one)") as h5:
         a = h5.attrs
         if a.get("format") != CHECKPOINT_FORMAT:
             raise InputError(path, "format", "not a spinweb checkpoint")

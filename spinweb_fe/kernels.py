@@ -36,51 +36,14 @@ def eval_elements(pos, vel, elem_nodes, rest, ea, cdamp, force, tension, want_en
     """Tension-only truss forces. Adds element forces into ``force`` (n,3), writes ``tension``.
 
     Returns (strain_energy [J] if want_energy else 0, max tension [N], damping power [W]).
+    The same element law as the step loop (``accumulate_elements``), for frames and tests.
     """
-    se = 0.0
-    tmax = 0.0
-    pdamp = 0.0
-    for e in range(elem_nodes.shape[0]):
-        i = elem_nodes[e, 0]
-        j = elem_nodes[e, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        ln = np.sqrt(dx * dx + dy * dy + dz * dz)
-        l0 = rest[e]
-        if ln <= l0:  # slack (or gathered, zero length): tension-only branch
-            tension[e] = 0.0
-            continue
-        strain = (ln - l0) / l0  # engineering strain on the stored rest length
-        inv = 1.0 / ln
-        ux = dx * inv
-        uy = dy * inv
-        uz = dz * inv
-        n_el = ea[e] * strain  # N = EA eps
-        n_tot = n_el
-        if cdamp[e] > 0.0:
-            # elongation rate dL/dt = u . (v_j - v_i); damper N_d = c dL/dt, tension only
-            ldot = (ux * (vel[j, 0] - vel[i, 0]) + uy * (vel[j, 1] - vel[i, 1])
-                    + uz * (vel[j, 2] - vel[i, 2]))
-            n_tot = n_el + cdamp[e] * ldot
-            if n_tot < 0.0:
-                n_tot = 0.0
-            pdamp += (n_tot - n_el) * ldot
-        tension[e] = n_tot
-        if n_tot > tmax:
-            tmax = n_tot
-        if want_energy:
-            se += 0.5 * ea[e] * strain * strain * l0  # U = EA eps^2 L0 / 2
-        fx = n_tot * ux
-        fy = n_tot * uy
-        fz = n_tot * uz
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
-    return se, tmax, pdamp
+    inv_rest = 1.0 / rest
+    damped = False
+    for e in range(cdamp.shape[0]):
+        damped = damped or cdamp[e] > 0.0
+    return accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force, 0,
+                               elem_nodes.shape[0], want_energy, tension)
 
 
 @njit(cache=True)
@@ -196,8 +159,9 @@ def place_tied(pos, vel, tied_idx, tied_ref, theta, omega):
 
 @njit(cache=True, error_model="numpy")
 def accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force, lo, hi,
-                        record):
-    """Hot loop: tension-only element forces of elements lo..hi-1 added into ``force`` (n,3).
+                        record, tension):
+    """Hot loop: tension-only element forces of elements lo..hi-1 added into ``force`` (n,3);
+    element tensions written into ``tension`` unless it is empty.
 
     Same physics as ``eval_elements``, arranged for speed: 1/L0 is stored, and the
     tension-only rule is a branch-free max on the strain (a web spinning unstretched sits on
@@ -209,6 +173,7 @@ def accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force
     se = 0.0
     tmax = 0.0
     pdamp = 0.0
+    write_tension = tension.shape[0] > 0
     for e in range(lo, hi):
         i = elem_nodes[e, 0]
         j = elem_nodes[e, 1]
@@ -229,6 +194,8 @@ def accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force
         if record:
             se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
             tmax = max(tmax, n_tot)
+        if write_tension:
+            tension[e] = n_tot
         c = n_tot * inv
         fx = c * dx
         fy = c * dy
@@ -249,7 +216,8 @@ def accumulate_threads(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, forces
     its own buffer forces[c]; out[c] = (strain energy, max tension, damping power)."""
     for c in prange(forces.shape[0]):
         se, tm, pd = accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped,
-                                         forces[c], bounds[c], bounds[c + 1], record)
+                                         forces[c], bounds[c], bounds[c + 1], record,
+                                         np.empty(0))
         out[c, 0] = se
         out[c, 1] = tm
         out[c, 2] = pd
@@ -350,6 +318,7 @@ def advance(pos, vel, hub, force, tension, inv_mass, node_mass, elem_nodes, rest
     eout = np.zeros((nt, 3))
     nout = np.zeros((nt, 5))
     sums = np.zeros(5)
+    no_tension = np.empty(0)
     nrec = 0
     nprobe = probe_idx.shape[0]
     vprobe = np.zeros((nprobe, 3))
@@ -364,7 +333,7 @@ def advance(pos, vel, hub, force, tension, inv_mass, node_mass, elem_nodes, rest
         t = step * dt
         if nt == 1:
             se, tmax, pdamp = accumulate_elements(pos, vel, elem_nodes, inv_rest, ea, cdamp,
-                                                  damped, force[0], 0, m_el, record)
+                                                  damped, force[0], 0, m_el, record, no_tension)
         else:
             accumulate_threads(pos, vel, elem_nodes, inv_rest, ea, cdamp, damped, force,
                                ebounds, record, eout)

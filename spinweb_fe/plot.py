@@ -4,25 +4,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from spinweb_fe.errors import InputError
 
 
 def load_for_plot(path):
-    import h5py
+    from spinweb_fe.results import open_h5
 
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "", "no such file")
-    try:
-        with h5py.File(path, "r") as h5:
-            if "history" not in h5:
-                raise InputError(path, "history", "no /history group in this file")
-            h = {k: h5["history"][k][()] for k in h5["history"]}
-            label = h5.attrs.get("model", "")
-    except OSError as exc:
-        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
+    with open_h5(path) as h5:
+        if "history" not in h5:
+            raise InputError(path, "history", "no /history group in this file")
+        h = {k: h5["history"][k][()] for k in h5["history"]}
+        label = h5.attrs.get("model", "")
     name = path.parent.name or path.stem
     label = f"{name} ({label})" if label else name
     return h, label

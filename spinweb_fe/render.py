@@ -97,16 +97,10 @@ def load_scene(path) -> Scene:
     InputError
         Missing or unreadable file, no ``/mesh``, no frames.
     """
-    import h5py
+    from spinweb_fe.results import open_h5
 
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "", "no such file")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
-    with h5:
+    with open_h5(path) as h5:
         if "mesh" not in h5:
             raise InputError(path, "mesh", "no /mesh group (an FE results.h5 is needed; "
                              "an analytic.h5 has no web to draw)")

@@ -83,6 +83,27 @@ def write_history(h5: h5py.File, history: dict):
     return g
 
 
+def open_h5(path, missing="no such file"):
+    """Open an HDF5 file for reading; a missing or unreadable file is invalid input (exit 2).
+
+    Parameters
+    ----------
+    missing : str
+        The reason given when the file does not exist.
+    """
+    from pathlib import Path
+
+    from spinweb_fe.errors import InputError
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "", missing)
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
+
+
 def read_history(path) -> dict:
     """Read ``/history`` of a result file into a dict of numpy arrays."""
     with h5py.File(path, "r") as h5:

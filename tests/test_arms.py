@@ -72,7 +72,6 @@ def test_free_arm_angle_is_continuous_past_pi():
     """An arm swinging round behind its root keeps counting (no jump at +-pi)."""
     mesh = tethers(1, H, M, R0, 10.0, "straight")
     tr = ArmTracker(mesh, R0)
-    s = np.arange(M + 1) * H / M
     angles = np.linspace(2.8, 3.6, 9)
     rows = []
     for b in angles:  # only the tip matters while nothing touches the hub: put every probe there

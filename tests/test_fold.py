@@ -222,7 +222,7 @@ def test_build_mesh_maps_errors_to_case_keys():
 
 def test_root_legs_two_points_per_coordinate(stages):
     """In 0 < l < c each arm coordinate holds exactly two points: one per leg."""
-    m, c = stages["trailing"], stages["c"]
+    m = stages["trailing"]
     root = m.node_sets["root_region"]
     key = np.round(m.node_arm_coord[root] / stages["t"] * stages["k"])
     for k in range(4):

@@ -3,10 +3,8 @@ the centrifugal load, so each mesh line carries the centrifugal pull of its own 
 the element, t = omega^2 sum m_k |x_k| (docs/prestress.md). The FE solver, started
 unstretched and damped to rest in the rotating frame, must find the same tensions."""
 
-import math
 
 import numpy as np
-import pytest
 
 from meshgen.flat import flat_quadquad
 from meshgen.mesh import lumped_mass

@@ -2,8 +2,6 @@
 
 from pathlib import Path
 
-from spinweb_fe.errors import InputError
-
 
 def add_parser(sub):
     p = sub.add_parser("info", help="summary of a result file", description=__doc__)
@@ -13,19 +11,13 @@ def add_parser(sub):
 
 def summary(path) -> str:
     """Multi-line text summary of a result file."""
-    import h5py
     import numpy as np
 
+    from spinweb_fe.results import open_h5
     from spinweb_fe.solver import energy_balance
 
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "", "no such file")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(path, "", f"not an HDF5 file ({exc})") from None
-    with h5:
+    with open_h5(path) as h5:
         a = h5.attrs
         lines = [f"file: {path}"]
         for k in ("format_version", "spinweb_version", "model", "status", "dt", "steps",
