@@ -24,5 +24,8 @@ test: $(STAMP)
 validate: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run_all.py
+
 clean:
 	rm -rf out .pytest_cache

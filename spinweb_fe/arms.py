@@ -93,6 +93,13 @@ class ArmTracker:
         self.root = np.asarray(roots, float)
         self.r0 = float(r0)
         self.prev_phi = np.full(self.n, np.nan)  # for a continuous (unwrapped) free-arm angle
+        self.prev_wound = np.zeros(self.n, bool)
+        gaps = [np.max(np.diff(np.unique(self.s_coord[self.s_arm == k])))
+                for k in range(self.n) if np.sum(self.s_arm == k) > 1]
+        self.gap = float(max(gaps)) if gaps else 0.0
+        # "on the hub": a spinning coil of straight elements of length g lifts off the rim by
+        # about r0 (g/r0)^2 / 24, so the tolerance grows with the spine spacing
+        self.tol = max(CONTACT_TOL, (self.gap / self.r0) ** 2 / 12) if self.r0 > 0 else 0.0
 
     def update(self, probe_pos, probe_vel, hub_angle):
         """(T, p, 3) probe positions / velocities and (T,) hub angle -> (L, phi, omega_tip),
@@ -103,7 +110,7 @@ class ArmTracker:
         phi = np.empty((T, n))
         r0 = self.r0
         sp = probe_pos[:, n:, :2]
-        on_hub = (np.hypot(sp[..., 0], sp[..., 1]) <= r0 * (1 + CONTACT_TOL) if r0 > 0
+        on_hub = (np.hypot(sp[..., 0], sp[..., 1]) <= r0 * (1 + self.tol) if r0 > 0
                   else np.zeros(sp.shape[:2], bool))
         for k in range(n):
             sel = np.flatnonzero(self.s_arm == k)
@@ -140,15 +147,18 @@ class ArmTracker:
             # frictionless hub, so measure from D, not from the root)
             delta = sense * (math.atan2(d[1], d[0]) - th_t)
             delta -= 2 * math.pi * round(delta / (2 * math.pi))
-            if abs(delta) <= 2 * gap / r0:
+            if abs(delta) <= (2 * gap + math.sqrt(2 * self.tol) * r0) / r0:
                 alpha, length = a_d + delta, l_tan
             else:
                 alpha, length = a_d, math.hypot(tip[0] - d[0], tip[1] - d[1])
             if alpha > 0:
+                self.prev_wound[k] = True
                 return length, -sense * (0.5 * math.pi + alpha)
         qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
         phi = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
         prev = self.prev_phi[k]
-        if prev == prev:  # continuous in time: the 2 pi branch nearest the previous row
+        if prev == prev and not self.prev_wound[k]:  # continuous in time: the 2 pi branch
+            #     nearest the previous row (an arm just off the hub takes the principal value)
             phi += 2 * math.pi * round((prev - phi) / (2 * math.pi))
+        self.prev_wound[k] = False
         return math.hypot(qx, qy), phi

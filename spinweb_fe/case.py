@@ -98,8 +98,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "time": {
         "end": F("float", REQUIRED, "pos", "s", "end time"),
-        "cfl": F("float", 0.3, "frac", "",
-                 "fraction of the critical step L0/c (0.3: see docs/stability.md)"),
+        "cfl": F("float", 0.2, "frac", "",
+                 "fraction of the critical step L0/c (0.2: see docs/stability.md)"),
         "dt": F("float", None, "pos", "s", "optional cap on the time step"),
     },
     "output": {

@@ -247,9 +247,12 @@ def integrate_nodes(pos, vel, force, inv_mass, node_mass, contact, r0, mu, j_eff
             vel[i, 1] += dt * force[i, 1] * im
             vel[i, 2] += dt * force[i, 2] * im
             if use_contact and contact[i]:
-                omega, d = contact_node(i, pos, vel, force, m, r0, mu, j_eff, omega, dw_force,
-                                        dt)
-                diss += d
+                px = pos[i, 0] + dt * vel[i, 0]  # predicted position: only nodes heading
+                py = pos[i, 1] + dt * vel[i, 1]  # inside the hub cylinder need the call
+                if px * px + py * py < r0 * r0:
+                    omega, d = contact_node(i, pos, vel, force, m, r0, mu, j_eff, omega,
+                                            dw_force, dt)
+                    diss += d
             if record:
                 ke1 += m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
                 lz1 += m * (pos[i, 0] * vel[i, 1] - pos[i, 1] * vel[i, 0])

@@ -26,6 +26,7 @@ from spinweb_fe.model import Model, State, choose_dt, initial_state, model_from_
 
 log = logging.getLogger("spinweb")
 ENERGY_LIMIT = 0.5  # stop when the energy balance error exceeds this fraction of the energy scale
+ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, reduce time.cfl
 ROWS_PER_CHUNK = 256  # history rows between two returns to Python (flush, progress, audit)
 WALL_CHUNK_S = 0.2  # ... and at most about this much wall time (signals, progress)
 FIRST_CHUNK_STEPS = 64  # steps of the first chunk, before the loop speed is known
@@ -117,6 +118,7 @@ class _EnergyAudit:
     def __init__(self, limit, ref=None):
         self.limit = limit
         self.ref = ref  # (balance at the first row [J], energy scale [J]) or None
+        self.warned = False
 
     def check(self, rows, t):
         bal = energy_balance(rows)
@@ -128,6 +130,11 @@ class _EnergyAudit:
         if err > self.limit:
             raise RunError(f"energy balance off by {100 * err:.0f} % of the energy scale "
                            "(numerical instability; reduce time.cfl)", time=t)
+        if err > ENERGY_WARN and not self.warned:
+            self.warned = True
+            log.warning("warning: at t = %.6g s the energy balance is off by %.2g %% of the "
+                        "energy scale (slack/taut snapping or hub impacts; a smaller time.cfl "
+                        "or a little damping helps, see docs/stability.md)", t, 100 * err)
 
 
 def arm_memory_of(tracker) -> dict:

@@ -41,7 +41,7 @@ def test_energy_balance_and_uncoiling():
     e = energy_balance(h)
     assert np.max(np.abs(e - e[0])) / e[0] < 1e-2
     assert h["hub_omega"][-1] < 0.5 * h["hub_omega"][0]  # the hub despins while paying out
-    assert h["arm_length"][-1].min() > 15.0  # the tethers are unwinding
+    assert h["arm_length"].max(axis=0).min() > 40.0  # every tether pays out (H = 50 m)
     assert np.all(np.abs(h["arm_angle"][0] + (math.pi / 2 + 50 / 6.3)) < 1e-6)
 
 

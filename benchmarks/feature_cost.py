@@ -1,0 +1,195 @@
+"""Cost of each solver feature, present and absent, against a minimal reference loop.
+
+    python benchmarks/feature_cost.py [--mesh-width 0.5] [--steps 600] [--repeat 5]
+
+Scene: the flat spinning QuadQuad web of benchmarks/throughput.py (S = 100 m, Zylon, 10 kg
+corners, every node at 2 pi rad/s, unstretched), one thread, the same dt for every variant.
+
+- ``floor``: ``reference_advance`` below, a numba loop with the production element math
+  (tension-only, 1/L0 stored, branch-free max, error_model='numpy') and the node update
+  v += dt f/m, x += dt v, f = 0, and nothing else (no hub, contact, control, damping, records).
+- ``bare``: the production loop (``solver.simulate``) on the same scene with every feature
+  absent: no tied nodes, no contact, law 'free', no damping, one history row per 256 x 1000
+  steps (i.e. almost never), no frames.
+- one feature switched on at a time: hub ties (the nodes within 3 m of the centre tied to a
+  hub), contact (every free node checked against a hub of radius 0.2 m; no node is inside),
+  control (torque feedback law), damping (5 % of critical), history every step, frames every
+  100 steps through ``on_frame`` (positions, velocities and tensions copied, as the writer
+  gets them).
+
+Production variants are timed by wall time of ``simulate`` less its compile/cache-load part
+(i.e. with the Python orchestration between chunks and the frame callbacks); the loop-only
+time is reported too. Variants run round-robin, ``repeat`` times, fastest kept. Writes
+benchmarks/results/feature_cost.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+from throughput import RHO, A, E, load_average, machine
+
+from meshgen.flat import flat_quadquad
+from spinweb_fe.control import LAWS, Control
+from spinweb_fe.model import build_model, choose_dt, initial_state
+from spinweb_fe.solver import simulate
+
+OUT = Path(__file__).resolve().parent / "results"
+
+
+@njit(cache=True, error_model="numpy")
+def reference_elements(pos, elem_nodes, inv_rest, ea, force):
+    """The production element math and nothing else: N = EA max(L/L0 - 1, 0), f = N u."""
+    for e in range(elem_nodes.shape[0]):
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
+        inv = 1.0 / ln
+        c = ea[e] * max(ln * inv_rest[e] - 1.0, 0.0) * inv
+        fx = c * dx
+        fy = c * dy
+        fz = c * dz
+        force[i, 0] += fx
+        force[i, 1] += fy
+        force[i, 2] += fz
+        force[j, 0] -= fx
+        force[j, 1] -= fy
+        force[j, 2] -= fz
+
+
+@njit(cache=True)
+def reference_nodes(pos, vel, force, inv_mass, dt):
+    """v += dt f/m, x += dt v, f = 0 (no tied-node test, no contact, no records)."""
+    for i in range(pos.shape[0]):
+        im = inv_mass[i]
+        for d in range(3):
+            vel[i, d] += dt * force[i, d] * im
+            pos[i, d] += dt * vel[i, d]
+            force[i, d] = 0.0
+
+
+@njit(cache=True)
+def reference_advance(pos, vel, force, inv_mass, elem_nodes, inv_rest, ea, dt, nsteps):
+    """The cost floor: nsteps of element pass + node pass."""
+    for _ in range(nsteps):
+        reference_elements(pos, elem_nodes, inv_rest, ea, force)
+        reference_nodes(pos, vel, force, inv_mass, dt)
+
+
+def scene(mesh_width, variant):
+    """(model, control, state, history_dt factor, frame every) of one variant."""
+    mesh = flat_quadquad(100.0, mesh_width, 1, 10.0, 0.0)
+    zeta = 0.05 if variant == "damping" else 0.0
+    r0 = 0.2 if variant == "contact" else 0.0
+    model = build_model(mesh, E, RHO, A, damping_ratio=zeta, hub_radius=r0, hub_inertia=1.0,
+                        contact=variant == "contact")
+    if variant == "hub ties":
+        pos = mesh.node_pos
+        tied = np.flatnonzero(np.hypot(pos[:, 0], pos[:, 1]) < 3.0).astype(np.int64)
+        inv = model.node_inv_mass.copy()
+        inv[tied] = 0.0
+        ref = np.ascontiguousarray(pos[tied], dtype=np.float64)
+        j_eff = 1.0 + float(np.sum(model.node_mass[tied] * (ref[:, 0] ** 2 + ref[:, 1] ** 2)))
+        model = dataclasses.replace(model, tied_idx=tied, tied_ref=ref, node_inv_mass=inv,
+                                    j_eff=j_eff)
+    if variant == "control":
+        control = Control(LAWS["torque_feedback"], np.array([10.0, 2 * math.pi, 0.0]))
+    else:
+        control = Control(LAWS["free"], np.zeros(1))
+    state = initial_state(model, 2 * math.pi, "all")
+    return model, control, state
+
+
+VARIANTS = ["bare", "hub ties", "contact", "control", "damping", "history every step",
+            "frames every 100 steps"]
+
+
+def run_variant(mesh_width, variant, dt, steps):
+    model, control, state = scene(mesh_width, variant)
+    every_step = variant == "history every step"
+    history_dt = dt if every_step else dt * 1000 * 256  # one row per 256 000 steps
+    frame_dt = 100 * dt if variant.startswith("frames") else 0.0
+    end = steps * dt
+    nframes = [0]
+
+    def on_frame(t, pos, vel, tension):
+        nframes[0] += 1
+
+    t0 = time.perf_counter()
+    res = simulate(model, control, state, dt, end, history_dt, frame_dt=frame_dt,
+                   on_frame=on_frame if frame_dt else None, threads=1, energy_limit=math.inf)
+    wall = time.perf_counter() - t0
+    return {"wall_s": wall - res.compile_s, "loop_s": res.loop_s, "steps": res.steps,
+            "elements": model.n_elems, "frames": nframes[0]}
+
+
+def run_floor(mesh_width, dt, steps):
+    model, _, state = scene(mesh_width, "bare")
+    force = np.zeros_like(state.pos)
+    inv_rest = 1.0 / model.elem_rest_len
+    args = (state.pos, state.vel, force, model.node_inv_mass, model.elem_nodes, inv_rest,
+            model.elem_ea, dt)
+    reference_advance(*args, 1)  # compile / cache load
+    t0 = time.perf_counter()
+    reference_advance(*args, steps)
+    s = time.perf_counter() - t0
+    return {"wall_s": s, "loop_s": s, "steps": steps, "elements": model.n_elems, "frames": 0}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mesh-width", type=float, nargs="+", default=[0.5, 2.5])
+    ap.add_argument("--updates", type=float, default=5e7,
+                    help="element-updates per timed run (steps = updates / elements)")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--cfl", type=float, default=0.8)
+    args = ap.parse_args(argv)
+    out = {"machine": machine(), "repeat": args.repeat, "sizes": {}}
+    for w in args.mesh_width:
+        model, _, _ = scene(w, "bare")
+        dt = choose_dt(model, args.cfl)
+        steps = max(100, int(args.updates / model.n_elems))
+        names = ["floor"] + VARIANTS
+        best = {}
+        loads = []
+        for name in names:  # warm up: compile / load every specialisation once
+            (run_floor(w, dt, 2) if name == "floor" else run_variant(w, name, dt, 2))
+        for _ in range(args.repeat):
+            loads.append(load_average())
+            for name in names:
+                r = run_floor(w, dt, steps) if name == "floor" else run_variant(w, name, dt, steps)
+                if name not in best or r["wall_s"] < best[name]["wall_s"]:
+                    best[name] = r
+        floor = best["floor"]["wall_s"]
+        bare = best["bare"]["wall_s"]
+        rows = []
+        for name in names:
+            r = best[name]
+            ns = 1e9 * r["wall_s"] / (r["steps"] * r["elements"])
+            row = {"variant": name, "ns_per_element_update": ns,
+                   "ns_per_element_update_loop_only":
+                       1e9 * r["loop_s"] / (r["steps"] * r["elements"]),
+                   "vs_floor_pct": 100 * (r["wall_s"] / floor - 1),
+                   "vs_bare_pct": 100 * (r["wall_s"] / bare - 1), **r}
+            rows.append(row)
+            print(f"W={w} {name:24s} {ns:6.2f} ns/el-update  vs floor {row['vs_floor_pct']:+6.1f} %"
+                  f"  vs bare {row['vs_bare_pct']:+6.1f} %", flush=True)
+        out["sizes"][str(w)] = {"mesh_width": w, "elements": model.n_elems, "dt": dt,
+                                "steps": steps, "load_1min_per_round": loads, "rows": rows}
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "feature_cost.json").write_text(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,297 @@
+"""Where the step loop's time goes: ns per element of each part of the element and node passes.
+
+    python benchmarks/profile_loop.py [--mesh-width 0.5] [--repeat 20]
+
+Microbenchmarks on the flat spinning web (benchmarks/throughput.py), one thread, every
+kernel called on the same arrays; each is the fastest of ``repeat`` calls in the fastest of
+``rounds`` interleaved rounds. Standalone kernels called from Python are compiled on their
+own: inside ``kernels.advance`` LLVM inlines them and the production passes run faster
+(see feature_cost.py for the end-to-end comparison).
+
+- gather: read the node pairs and form dx, dy, dz (summed, so nothing is optimised away);
+- gather + sqrt/div: the same plus the length, 1/L and the tension-only force factor;
+- scatter: add a force (made from the element's own data, no node reads) into both nodes;
+- element pass (reference): gather + math + scatter, as feature_cost.reference_elements;
+- element pass (production): kernels.accumulate_elements, no damping, no records;
+- element pass (production, record): the same on a history step (energy and max tension);
+- element pass, elements in random order: what the mesh's locality is worth;
+- node pass (reference / production kernels.integrate_nodes);
+- the threaded kernels (accumulate_threads, integrate_threads) on 1 and 2 threads, each
+  called repeatedly (warm caches), then alternately (a real step each), and the whole
+  kernels.advance loop;
+- a core probe: sqrt/divide-bound against latency-bound scalar work on 1 and 2 threads.
+Also reports whether the production element pass uses packed AVX-512 sqrt and divide
+(vsqrtpd / vdivpd on zmm registers) in numba's assembly. Writes
+benchmarks/results/profile_loop.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+from throughput import load_average, machine, spinning_web
+
+from spinweb_fe import kernels
+
+OUT = Path(__file__).resolve().parent / "results"
+
+
+@njit(cache=True, error_model="numpy")
+def gather_only(pos, elem_nodes, out):
+    for e in range(elem_nodes.shape[0]):
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        out[e] = dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True, error_model="numpy")
+def gather_math(pos, elem_nodes, inv_rest, ea, out):
+    for e in range(elem_nodes.shape[0]):
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
+        inv = 1.0 / ln
+        out[e] = ea[e] * max(ln * inv_rest[e] - 1.0, 0.0) * inv
+
+
+@njit(cache=True, error_model="numpy")
+def scatter_only(elem_nodes, inv_rest, force):
+    for e in range(elem_nodes.shape[0]):
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        f = inv_rest[e]
+        force[i, 0] += f
+        force[i, 1] += f
+        force[i, 2] += f
+        force[j, 0] -= f
+        force[j, 1] -= f
+        force[j, 2] -= f
+
+
+@njit(cache=True, error_model="numpy")
+def element_pass(pos, elem_nodes, inv_rest, ea, force):
+    for e in range(elem_nodes.shape[0]):
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
+        inv = 1.0 / ln
+        c = ea[e] * max(ln * inv_rest[e] - 1.0, 0.0) * inv
+        fx = c * dx
+        fy = c * dy
+        fz = c * dz
+        force[i, 0] += fx
+        force[i, 1] += fy
+        force[i, 2] += fz
+        force[j, 0] -= fx
+        force[j, 1] -= fy
+        force[j, 2] -= fz
+
+
+@njit(cache=True)
+def node_pass(pos, vel, force, inv_mass, dt):
+    for i in range(pos.shape[0]):
+        im = inv_mass[i]
+        for d in range(3):
+            vel[i, d] += dt * force[i, d] * im
+            pos[i, d] += dt * vel[i, d]
+            force[i, d] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def core_probe(a, reps, divide):
+    """Two independent chunks of scalar work, one per thread: sqrt/divide-bound (``divide``)
+    or a dependent multiply-add chain (latency-bound). If 2 threads speed up the latter 2x but
+    the former less, the two CPUs share a divide/sqrt unit (SMT siblings on the host)."""
+    s = np.zeros(2)
+    for c in prange(2):
+        acc = 0.0
+        for r in range(reps):
+            for i in range(a.shape[0]):
+                if divide:
+                    acc += np.sqrt(a[i] + r) / (a[i] + 1.0)
+                else:
+                    acc = acc * 0.999 + a[i]
+        s[c] = acc
+    return s
+
+
+def loop_threads(model, state, nt, steps=300):
+    """ns per element-update of kernels.advance (bare web, no records) on nt threads, and of
+    the two threaded kernels called alternately from Python (a real step each)."""
+    import numba
+
+    numba.set_num_threads(nt)
+    m, n = model.n_elems, model.n_nodes
+    dt = 0.9 * model.dt_critical
+    inv_rest = 1.0 / model.elem_rest_len
+
+    def adv(k):
+        pos, vel, hub = state.pos.copy(), state.vel.copy(), state.hub.copy()
+        rec = np.zeros((2, len(kernels.REC_COLUMNS)))
+        pp = np.zeros((2, 0, 3))
+        t0 = time.perf_counter()
+        kernels.advance(pos, vel, hub, np.zeros((nt, n, 3)), np.zeros(m), model.node_inv_mass,
+                        model.node_mass, model.elem_nodes, model.elem_rest_len, model.elem_ea,
+                        model.elem_cdamp, model.tied_idx, model.tied_ref, model.node_contact,
+                        model.hub_radius, model.hub_friction, model.j_eff, 0,
+                        np.zeros(1), dt, k, 10**9, np.zeros(0, np.int64), rec, pp, pp.copy())
+        return time.perf_counter() - t0
+
+    def kern(k):
+        pos, vel = state.pos.copy(), state.vel.copy()
+        forces = np.zeros((nt, n, 3))
+        eb, nb = kernels.split(m, nt), kernels.split(n, nt)
+        eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
+        t0 = time.perf_counter()
+        for _ in range(k):
+            kernels.accumulate_threads(pos, vel, model.elem_nodes, inv_rest, model.elem_ea,
+                                       model.elem_cdamp, False, forces, eb, False, eo)
+            kernels.integrate_threads(pos, vel, forces, model.node_inv_mass, model.node_mass,
+                                      model.node_contact, 0.0, 1.0, 0.0, 0.0, dt, nb, False, no)
+        return time.perf_counter() - t0
+
+    adv(2)
+    kern(2)
+    a = min(adv(steps) for _ in range(3))
+    b = min(kern(steps) for _ in range(3))
+    return {"advance_ns": 1e9 * a / (steps * m), "threaded_kernels_alternating_ns":
+            1e9 * b / (steps * m)}
+
+
+def best_of(fn, repeat):
+    fn()
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return min(ts)
+
+
+def vector_math(fn, *args):
+    """(packed zmm sqrt, packed zmm div, ymm sqrt, ymm div) in the assembly of ``fn``'s Python
+    source compiled afresh (cached code cannot be inspected) with error_model='numpy'."""
+    fresh = njit(error_model="numpy")(fn.py_func)
+    fresh(*args)
+    asm = "\n".join(fresh.inspect_asm().values())
+    return (bool(re.search(r"vsqrtpd\s+.*zmm", asm)), bool(re.search(r"vdivpd\s+.*zmm", asm)),
+            bool(re.search(r"vsqrtpd\s+.*ymm", asm)), bool(re.search(r"vdivpd\s+.*ymm", asm)))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mesh-width", type=float, default=0.5)
+    ap.add_argument("--repeat", type=int, default=20)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args(argv)
+    model, _, state = spinning_web(args.mesh_width)
+    pos, vel = state.pos, state.vel
+    # a slightly stretched web, so that the tension-only max is taut for part of the elements
+    pos *= 1.0 + 1e-4 * np.sin(np.arange(pos.shape[0]))[:, None]
+    en = model.elem_nodes
+    inv_rest = 1.0 / model.elem_rest_len
+    ea, cd = model.elem_ea, model.elem_cdamp
+    force = np.zeros_like(pos)
+    m = model.n_elems
+    n = model.n_nodes
+    perm = np.random.default_rng(0).permutation(m)
+    en_rand = np.ascontiguousarray(en[perm])
+    out4 = np.zeros(5)
+    tmp = np.zeros(m)
+    no_t = np.zeros(0)  # no tension output (as in the step loop)
+    dt = 1e-9  # tiny: the state hardly changes between repetitions
+    parts = {
+        "gather": lambda: gather_only(pos, en, tmp),
+        "gather + sqrt/div": lambda: gather_math(pos, en, inv_rest, ea, tmp),
+        "scatter": lambda: scatter_only(en, inv_rest, force),
+        "element pass (reference)": lambda: element_pass(pos, en, inv_rest, ea, force),
+        "element pass (production)": lambda: kernels.accumulate_elements(
+            pos, vel, en, inv_rest, ea, cd, False, force, 0, m, False, no_t),
+        "element pass (production, record)": lambda: kernels.accumulate_elements(
+            pos, vel, en, inv_rest, ea, cd, False, force, 0, m, True, no_t),
+        "element pass (production, damped)": lambda: kernels.accumulate_elements(
+            pos, vel, en, inv_rest, ea, cd + 1.0, True, force, 0, m, False, no_t),
+        "element pass, random element order": lambda: element_pass(pos, en_rand, inv_rest, ea,
+                                                                    force),
+        "node pass (reference)": lambda: node_pass(pos, vel, force, model.node_inv_mass, dt),
+        "node pass (production)": lambda: kernels.integrate_nodes(
+            pos, vel, force, model.node_inv_mass, model.node_mass, model.node_contact, 0.0, 0.0,
+            1.0, 0.0, 0.0, dt, 0, n, False, out4),
+    }
+    rows = {}
+    for _ in range(args.rounds):  # rounds interleave the parts; the fastest round is kept
+        for name, fn in parts.items():
+            s = best_of(fn, args.repeat)
+            if name not in rows or s < rows[name]["s"]:
+                rows[name] = {"s": s, "ns_per_element": 1e9 * s / m}
+    for name, r in rows.items():
+        print(f"{name:38s} {r['ns_per_element']:6.2f} ns/element", flush=True)
+    threads = {}
+    import numba
+
+    for nt in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+        numba.set_num_threads(nt)
+        forces = np.zeros((nt, n, 3))
+        eb, nb = kernels.split(m, nt), kernels.split(n, nt)
+        eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
+        def elem_pass(forces=forces, eb=eb, eo=eo):
+            kernels.accumulate_threads(pos, vel, en, inv_rest, ea, cd, False, forces, eb, False,
+                                       eo)
+
+        def node_pass_t(forces=forces, nb=nb, no=no):
+            kernels.integrate_threads(pos, vel, forces, model.node_inv_mass, model.node_mass,
+                                      model.node_contact, 0.0, 1.0, 0.0, 0.0, dt, nb, False, no)
+
+        e_s = min(best_of(elem_pass, args.repeat) for _ in range(args.rounds))
+        n_s = min(best_of(node_pass_t, args.repeat) for _ in range(args.rounds))
+        threads[str(nt)] = {"element_pass_ns": 1e9 * e_s / m, "node_pass_ns": 1e9 * n_s / m}
+        print(f"threads kernels, {nt} thread(s): element pass {1e9 * e_s / m:.2f} ns, "
+              f"node pass (buffer reduction included) {1e9 * n_s / m:.2f} ns per element")
+    for nt in list(threads):
+        numba.set_num_threads(int(nt))
+        threads[nt].update(loop_threads(model, state, int(nt)))
+        a = np.random.default_rng(1).random(1000)
+        for divide, key in ((True, "core_probe_sqrt_div_s"), (False, "core_probe_fma_chain_s")):
+            core_probe(a, 1, divide)
+            t0 = time.perf_counter()
+            core_probe(a, 20000, divide)
+            threads[nt][key] = time.perf_counter() - t0
+        print(f"{nt} thread(s): " + ", ".join(f"{k} {v:.3g}" for k, v in threads[nt].items()))
+    vec = {}
+    for name, fn, a in (
+            ("accumulate_elements", kernels.accumulate_elements,
+             (pos, vel, en, inv_rest, ea, cd, False, force, 0, m, False, no_t)),
+            ("element_pass", element_pass, (pos, en, inv_rest, ea, force)),
+            ("gather_math", gather_math, (pos, en, inv_rest, ea, tmp))):
+        vec[name] = dict(zip(("zmm_sqrt", "zmm_div", "ymm_sqrt", "ymm_div"),
+                             vector_math(fn, *a)))
+    print(vec)
+    out = {"machine": machine(), "mesh_width": args.mesh_width, "elements": m, "nodes": n,
+           "repeat": args.repeat, "rounds": args.rounds, "load_1min": load_average(), "parts": rows,
+           "threads_kernels": threads, "vectorisation": vec,
+           "bytes_touched_per_element": {
+               "element pass": (2 * 8 + 8 + 8 + 2 * 3 * 8 * 2),  # nodes, 1/L0, EA, pos+force x2
+               "note": "elem_nodes 16 B, 1/L0 8 B, EA 8 B, two pos rows read and two force "
+                       "rows read-modified-written (48 B each, mostly cache hits)"}}
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "profile_loop.json").write_text(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    main()
