@@ -34,6 +34,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from feature_cost import reference_elements as element_pass
+from feature_cost import reference_nodes as node_pass
 from numba import njit, prange
 from throughput import load_average, machine, spinning_web
 
@@ -78,38 +80,6 @@ def scatter_only(elem_nodes, inv_rest, force):
         force[j, 0] -= f
         force[j, 1] -= f
         force[j, 2] -= f
-
-
-@njit(cache=True, error_model="numpy")
-def element_pass(pos, elem_nodes, inv_rest, ea, force):
-    for e in range(elem_nodes.shape[0]):
-        i = elem_nodes[e, 0]
-        j = elem_nodes[e, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
-        inv = 1.0 / ln
-        c = ea[e] * max(ln * inv_rest[e] - 1.0, 0.0) * inv
-        fx = c * dx
-        fy = c * dy
-        fz = c * dz
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
-
-
-@njit(cache=True)
-def node_pass(pos, vel, force, inv_mass, dt):
-    for i in range(pos.shape[0]):
-        im = inv_mass[i]
-        for d in range(3):
-            vel[i, d] += dt * force[i, d] * im
-            pos[i, d] += dt * vel[i, d]
-            force[i, d] = 0.0
 
 
 @njit(cache=True, parallel=True)

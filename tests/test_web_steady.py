@@ -5,29 +5,14 @@ unstretched and damped to rest in the rotating frame, must find the same tension
 
 
 import numpy as np
+from closed_forms import quadquad_line_tensions
 
 from meshgen.flat import flat_quadquad
-from meshgen.mesh import lumped_mass
 from spinweb_fe.control import LAWS, Control
 from spinweb_fe.model import build_model, choose_dt, initial_state
 from spinweb_fe.solver import current_tension, simulate
 
 E, RHO, A = 180e12, 1540.0, 1.025e-5  # 1000x Zylon: strain ~1e-7, elasticity negligible
-
-
-def closed_form_tensions(mesh, omega, line_density):
-    mass = lumped_mass(mesh, line_density)
-    xy = mesh.node_ref[:, :2]
-    out = np.empty(mesh.n_elems)
-    for k, (i, j) in enumerate(mesh.elem_nodes):
-        d = xy[j] - xy[i]
-        ax = 0 if abs(d[0]) > abs(d[1]) else 1
-        outer = j if abs(xy[j, ax]) > abs(xy[i, ax]) else i
-        line = np.isclose(xy[:, 1 - ax], xy[outer, 1 - ax])
-        beyond = line & (np.sign(xy[:, ax]) == np.sign(xy[outer, ax])) & (
-            np.abs(xy[:, ax]) >= abs(xy[outer, ax]) - 1e-9)
-        out[k] = omega ** 2 * np.sum(mass[beyond] * np.abs(xy[beyond, ax]))
-    return out
 
 
 def test_spinning_flat_web_tensions_match_statics():
@@ -41,6 +26,6 @@ def test_spinning_flat_web_tensions_match_statics():
     dt = choose_dt(model, 0.3, history_dt=1e-3)
     simulate(model, Control(LAWS["free"], np.zeros(1)), state, dt, 0.2, 1e-3)
     fe = current_tension(model, state.pos, state.vel)
-    ref = closed_form_tensions(mesh, omega, RHO * A)
+    ref = quadquad_line_tensions(mesh, omega, RHO * A)
     assert np.max(np.abs(fe - ref)) < 1e-3 * ref.max()
     assert ref.min() > 0
