@@ -9,6 +9,7 @@ from meshgen.flat import default_cutout, effective_cutout, flat_web
 from meshgen.fold import fold_web
 from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
+from meshgen.topologies import flat_other, outline_cutout
 from spinweb_fe.errors import InputError
 
 # generator parameter -> case key, per scene
@@ -26,7 +27,10 @@ def build_mesh(case) -> Mesh:
     """Initial mesh of a case: flat web -> (star fold + coil | flat), or tethers.
 
     A quadquad web is tied to the hub as ``fold.ties`` says (``frame``: the whole
-    boundary of the cut-out; ``axes``: its 4 nodes on the axes), see docs/mesh.md.
+    boundary of the cut-out; ``axes``: its 4 nodes on the axes), see docs/mesh.md. A
+    star-folded web of another topology gets a hole shaped like its outline (inradius
+    ``web.hub_cutout``, default the hub radius; tritri rounds it out to a mesh line) and
+    is tied by its frame; a flat one keeps the disc cut-out with its rim tied.
 
     Parameters
     ----------
@@ -65,15 +69,21 @@ def resolved_cutout(case) -> float:
 
 
 def _build_web(case) -> Mesh:
-    web, hub = case.web, case.hub
-    if web.topology != "quadquad" and case.fold.pattern == "star":
-        raise MeshValueError("pattern", "star fold is implemented for quadquad only "
-                             f"(web.topology = '{web.topology}'); use fold.pattern = 'flat'")
+    web, hub, fold = case.web, case.hub, case.fold
     if web.topology == "quadquad":
         flat = flat_web(web, case.tip_mass.mass, resolved_cutout(case))
-        return fold_web(flat, hub.radius, case.fold.pattern, case.fold.wrap, case.fold.ties)
-    # other topologies: their generator cuts a disc of this radius and ties its rim
+        return fold_web(flat, hub.radius, fold.pattern, fold.wrap, fold.ties)
     cut = hub.radius if web.hub_cutout is None else web.hub_cutout
+    if fold.pattern == "star":
+        # a hole shaped like the outline: its boundary is the hub frame of the fold
+        if fold.ties == "axes":
+            raise MeshValueError("ties", "ties = 'axes' needs the square web with a square "
+                                 f"mesh (web.topology = '{web.topology}'); use 'frame'")
+        c = outline_cutout(web.topology, web.side, web.mesh_width, cut)
+        flat = flat_other(web.topology, web.side, web.mesh_width, web.elements_per_segment,
+                          case.tip_mass.mass, c, hole="outline")
+        return fold_web(flat, hub.radius, "star", fold.wrap, "frame")
+    # flat: the generator cuts a disc of this radius and ties its rim
     return _tie_innermost(flat_web(web, case.tip_mass.mass, cut), hub.radius)
 
 

@@ -1,23 +1,30 @@
-"""Star fold of the square web and coiling of arms on the hub [reconstructed].
+"""Star fold of a web and coiling of its arms on the hub [reconstructed].
 
-Three pure stages, each returning a new :class:`~meshgen.mesh.Mesh` (see docs/mesh.md):
+Three pure stages, each returning a new :class:`~meshgen.mesh.Mesh` (see docs/mesh.md).
+They work for a web with n = 4 corners (the square web, any mesh) or n = 3 (the
+triangular web), centred on the hub, with a central hole shaped like the web outline.
+The n half-axes, from the centre through the side midpoints (angles psi_k -+ pi/n from
+the corner k at psi_k), split the web into n kites; kite k becomes arm k.
 
-1. :func:`assign_arms` -- the flat web split into 4 arms (arm coordinate
-   l = min(|x'|, |y'|) in quadrant coordinates), the hub-tied nodes and the arm metadata;
-   positions unchanged (this is the ``flat`` fold pattern). Two hub attachments
-   (``ties``): ``frame`` (default) ties every node of the cut-out's boundary, a rigid
-   square frame of half-width c >= r0; ``axes`` ties only the 4 cross nodes T_j.
-2. :func:`star_fold` -- every node with the same (arm, leg, l) is gathered onto one point:
-   the cross halves onto their tied points T_j; the root legs (l < c) onto the frame edge
-   they attach to (``frame``) or along a path from T_j in to the rim and round it to the
-   merge point M_k (``axes``); the arm beyond (l >= c) straight and radial, from the frame
-   corner (``frame``) or from M_k (``axes``): a star of 4 arms.
+1. :func:`assign_arms` -- the flat web split into n arms (arm coordinate l = distance to
+   the nearer half-axis line of the kite), the hub-tied nodes and the arm metadata;
+   positions unchanged (the ``flat`` fold pattern). Two hub attachments (``ties``):
+   ``frame`` (default) ties every node of the hole boundary, a rigid polygon of inradius
+   c >= r0 around the hub; ``axes`` (square web with a square mesh only) ties the 4
+   nodes T_j where the half-axes leave the hole.
+2. :func:`star_fold` -- ``frame``: every node goes to its nearest point on the frame
+   polygon, and nodes in the normal cone of a frame corner (l >= l_c = c tan(pi/n)) go on
+   radially from that corner by l - l_c: the half-axes collapse onto the points
+   T_j = c u_j, the root strips onto the frame edges, and the arms beyond are straight
+   and radial -- a star of n arms. ``axes``: the root legs are led from T_j in to the rim
+   and round it to the merge point (:func:`leg_path`).
 3. :func:`coil` -- every straight radial arm is wound onto the hub rim, trailing or
    leading (``frame``: first folded back radially from the frame corner in to the rim).
    Generic: also used for tethers.
 
-Every stage maps the arm coordinate 1-Lipschitz onto the plane, so no element is ever
-longer than its rest length (checked by :func:`meshgen.checks.check_mesh`).
+Each stage is 1-Lipschitz (a nearest-point projection onto a convex set is, and l is),
+so no element is ever longer than its rest length (checked by
+:func:`meshgen.checks.check_mesh`).
 """
 
 from __future__ import annotations
@@ -32,97 +39,137 @@ from meshgen.mesh import Mesh
 WRAP_SIGN = {"trailing": 1, "leading": -1}
 #: hub attachments of the star-folded web: the whole hole boundary, or the 4 axis nodes
 TIES = ("frame", "axes")
-
-# local quadrant coordinates (x', y') = R(-k pi/2) (x, y): rows are (x', y') as
-# combinations of (x, y) for k = 0..3
-_ROT = np.array([[[1, 0], [0, 1]], [[0, 1], [-1, 0]],
-                 [[-1, 0], [0, -1]], [[0, -1], [1, 0]]], dtype=np.float64)
+#: per number of arms n: cos(pi/n) and tan(pi/n), exact where float allows
+_COS = {3: 0.5, 4: math.sqrt(0.5)}
+_TAN = {3: math.sqrt(3.0), 4: 1.0}
 
 
-def _classify(ref: np.ndarray, tol: float):
-    """Quadrant decomposition of a flat square web centred at the origin.
+def _unit(angle: np.ndarray) -> np.ndarray:
+    """(k, 2) unit vectors at ``angle``, with components within 1e-15 of 0 or +-1 snapped
+    (so that the square web's axes are exact)."""
+    u = np.column_stack([np.cos(angle), np.sin(angle)])
+    u[np.abs(u) < 1e-15] = 0.0
+    unit = np.abs(np.abs(u) - 1.0) < 1e-15
+    u[unit] = np.sign(u[unit])
+    return u
+
+
+def corner_angles(mesh: Mesh) -> np.ndarray:
+    """(n,) angles psi_k [rad] of the web corners (the ``tips`` set, in arm order), made
+    exactly regular: psi_k = psi_0 + 2 pi k / n."""
+    tips = mesh.node_sets["tips"]
+    n = len(tips)
+    if n not in _COS:
+        raise MeshValueError("topology", f"the star fold needs a web with 3 or 4 corners, "
+                             f"this one has {n}")
+    p0 = mesh.node_ref[tips[0], :2]
+    psi0 = math.atan2(p0[1], p0[0])
+    return psi0 + 2 * math.pi * np.arange(n) / n
+
+
+def half_axes(psi: np.ndarray) -> np.ndarray:
+    """(n, 2) unit vectors u_j of the half-axes, at angles psi_j - pi/n: arm k lies
+    between half-axes k and k+1 (mod n)."""
+    return _unit(psi - math.pi / len(psi))
+
+
+def _classify(ref: np.ndarray, psi: np.ndarray, tol: float):
+    """Kite decomposition of a flat web centred at the origin.
 
     Returns
     -------
-    arm : (n,) int64
-        Quadrant / arm k of each node, -1 on the central cross.
-    cross : (n,) int64
-        Cross half j (angle j pi/2) of cross nodes, -1 elsewhere.
-    half : (n,) int64
-        Cross half j the node's leg hangs from: k for x' > y' (y' = 0 side), k+1 for
-        x' < y' (x' = 0 side); -1 on the diagonal x' = y' and on the cross.
-    l : (n,) float64 [m]
-        Arm coordinate min(|x'|, |y'|) (0 on the cross).
+    arm : (n_nodes,) int64
+        Kite / arm k of each node, -1 on a half-axis (and at the centre).
+    cross : (n_nodes,) int64
+        Half-axis j of the nodes on one, -1 elsewhere.
+    half : (n_nodes,) int64
+        Half-axis j the node's leg hangs from: k if nearer half-axis k, k+1 (mod n) if
+        nearer half-axis k+1; -1 on the kite's bisector and on the half-axes.
+    l : (n_nodes,) float64 [m]
+        Arm coordinate: distance to the nearer half-axis line (0 on a half-axis).
+    gauge : (n_nodes,) float64 [m]
+        max_j P.u_j: the inradius of the outline-shaped polygon through the node.
     """
-    x, y = ref[:, 0], ref[:, 1]
-    on_x, on_y = np.abs(y) <= tol, np.abs(x) <= tol
-    cross_node = on_x | on_y
-    cross = np.full(len(x), -1, np.int64)
-    cross[on_x & (x > 0)] = 0
-    cross[on_y & (y > 0)] = 1
-    cross[on_x & (x < 0)] = 2
-    cross[on_y & (y < 0)] = 3
-    arm = np.where(x > 0, np.where(y > 0, 0, 3), np.where(y > 0, 1, 2)).astype(np.int64)
-    arm[cross_node] = -1
-    k = np.maximum(arm, 0)
-    xl = _ROT[k, 0, 0] * x + _ROT[k, 0, 1] * y
-    yl = _ROT[k, 1, 0] * x + _ROT[k, 1, 1] * y
-    l = np.where(cross_node, 0.0, np.minimum(xl, yl))
-    half = np.where(xl > yl + tol, k, np.where(yl > xl + tol, (k + 1) % 4, -1))
-    half[cross_node] = -1
-    return arm, cross, half, l
+    n = len(psi)
+    u = half_axes(psi)
+    xy = ref[:, :2]
+    side = xy[:, None, 1] * u[None, :, 0] - xy[:, None, 0] * u[None, :, 1]   # u_j x P
+    along = xy @ u.T
+    on = (np.abs(side) <= tol) & (along > tol)
+    cross = np.where(on.any(axis=1), np.argmax(on, axis=1), -1)
+    arm = np.full(len(xy), -1, np.int64)
+    d_lo = np.zeros(len(xy))
+    d_hi = np.zeros(len(xy))
+    for k in range(n):
+        inside = (side[:, k] > tol) & (side[:, (k + 1) % n] < -tol)
+        arm[inside] = k
+        d_lo[inside], d_hi[inside] = side[inside, k], -side[inside, (k + 1) % n]
+    arm[cross >= 0] = -1
+    l = np.where(arm >= 0, np.minimum(d_lo, d_hi), 0.0)
+    half = np.where(d_lo < d_hi - tol, arm, np.where(d_hi < d_lo - tol, (arm + 1) % n, -1))
+    half[arm < 0] = -1
+    return arm, cross.astype(np.int64), half.astype(np.int64), l, along.max(axis=1)
 
 
-def _cutout(ref: np.ndarray) -> float:
-    """Cut-out half-width c [m] of a flat square web: the smallest max(|x|, |y|)."""
-    return float(np.min(np.max(np.abs(ref[:, :2]), axis=1)))
+def _hole(mesh: Mesh, tol: float):
+    """(psi, c, gauge): corner angles, hole inradius c = the smallest gauge, node gauges."""
+    psi = corner_angles(mesh)
+    gauge = _classify(mesh.node_ref, psi, tol)[4]
+    return psi, float(gauge.min()), gauge
 
 
-def _frame_nodes(ref: np.ndarray, c: float, tol: float) -> np.ndarray:
-    """Nodes on the square loop max(|x|, |y|) = c (the hole boundary), sorted."""
-    return np.flatnonzero(np.abs(np.max(np.abs(ref[:, :2]), axis=1) - c) <= tol)
+def frame_lead_in(c: float, r0: float, n: int = 4) -> float:
+    """Length d0 = c / cos(pi/n) - r0 [m] of the radial spoke from a frame corner in to
+    the rim, where the coil of a ``frame``-tied arm starts (c sqrt(2) - r0 for the
+    square web, 2c - r0 for the triangular web)."""
+    return c / _COS[n] - r0
+
+
+def corner_coord(c: float, n: int = 4) -> float:
+    """Arm coordinate l_c = c tan(pi/n) [m] of a frame corner: where the arm leaves the
+    frame (c for the square web, c sqrt(3) for the triangular web)."""
+    return c * _TAN[n]
 
 
 def tie_mode(mesh: Mesh) -> str:
     """``'frame'`` or ``'axes'``: the hub attachment of a web from :func:`assign_arms`.
 
-    ``frame`` if the hub-tied nodes are exactly the nodes of the cut-out's boundary loop,
+    ``frame`` if the hub-tied nodes are exactly the nodes of the hole boundary (more
+    than one per arm: tethers, tied by one root node each, are never ``frame``),
     ``axes`` if they are 4 nodes; MeshValueError otherwise (no arm data).
     """
     tied = np.sort(np.asarray(mesh.node_sets.get("hub_tied", ()), np.int64))
-    if mesh.n_arms == 4 and len(tied) > 4 and mesh.n_elems:
+    if mesh.n_arms in _COS and len(tied) > mesh.n_arms and mesh.n_elems:
         tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-        ref = mesh.node_ref
-        if np.array_equal(tied, _frame_nodes(ref, _cutout(ref), tol)):
+        _, c, gauge = _hole(mesh, tol)
+        if np.array_equal(tied, np.flatnonzero(np.abs(gauge - c) <= tol)):
             return "frame"
     if mesh.n_arms == 4 and len(tied) == 4:
         return "axes"
-    raise MeshValueError("pattern", "star fold is implemented for quadquad only "
-                         "(call assign_arms first)")
-
-
-def frame_lead_in(c: float, r0: float) -> float:
-    """Length d0 = c sqrt(2) - r0 [m] of the radial spoke from the frame corner (radius
-    c sqrt(2)) in to the rim, where the coil of a ``frame``-tied arm starts."""
-    return c * math.sqrt(2.0) - r0
+    raise MeshValueError("pattern", "no star-fold arm data on this mesh (call assign_arms "
+                         "first on a web with an outline-shaped hole)")
 
 
 def assign_arms(mesh: Mesh, hub_radius: float, ties: str = "frame") -> Mesh:
-    """Arm decomposition of a flat square web and its hub ties (the ``flat`` pattern).
+    """Arm decomposition of a flat web and its hub ties (the ``flat`` pattern).
 
-    Quadrant k holds arm k, whose tip is the corner at psi_k = pi/4 + k pi/2. A node's
-    arm coordinate is l = min(|x'|, |y'|) in the quadrant's local coordinates. Nodes on
-    the central cross (x = 0 or y = 0) belong to no arm (``node_arm = -1``, arm coordinate
-    NaN; node set ``cross``). The cut-out half-width c is the smallest max(|x|, |y|) of the
-    web. Tied nodes: ``frame`` -- every node of the hole boundary max(|x|, |y|) = c
-    (subdivision nodes included: 8 c k / t nodes), a rigid square frame around the hub;
-    ``axes`` -- the 4 innermost cross nodes T_j = c (cos j pi/2, sin j pi/2).
+    Kite k holds arm k, whose tip is the corner at psi_k (the ``tips`` set). A node's arm
+    coordinate l is its distance to the nearer of the kite's two half-axis lines; the
+    tip has l = S/2 (the half sides from the side midpoints to the corner become the
+    arm). Nodes on a half-axis belong to no arm (``node_arm = -1``, arm coordinate NaN;
+    node set ``cross``). The hole inradius c is the smallest gauge max_j P.u_j of the
+    web's nodes. Tied nodes: ``frame`` -- every node of the hole boundary (gauge = c,
+    subdivision nodes included), a rigid polygon around the hub; ``axes`` (4 corners
+    only) -- the 4 innermost half-axis nodes T_j = c u_j.
 
     Parameters
     ----------
     mesh : Mesh
-        Flat QuadQuad web with an even number of mesh widths per side (the central
-        cross must be a pair of mesh lines) and a cut-out c >= hub_radius.
+        Flat web with 3 or 4 corners centred at the origin, with a central hole shaped
+        like its outline (:func:`meshgen.flat.flat_quadquad` with a cut-out, or
+        :func:`meshgen.topologies.flat_other` with ``hole='outline'``) of inradius
+        c >= hub_radius. ``axes`` needs the half-axes to be mesh lines (QuadQuad with an
+        even number of mesh widths per side).
     hub_radius : float [m]
     ties : {'frame', 'axes'}
 
@@ -130,49 +177,58 @@ def assign_arms(mesh: Mesh, hub_radius: float, ties: str = "frame") -> Mesh:
     -------
     Mesh
         Same positions; ``node_arm``, ``node_arm_coord``, ``arm_root_angle`` (psi_k),
-        ``arm_length`` = a, ``arm_root_coord`` (where the coil meets the rim:
-        c + c sqrt(2) - r0 for ``frame``, c for ``axes``), ``hub_radius``, ``wrap`` = 0,
-        node sets ``hub_tied``, ``cross``, ``root_region`` (arm nodes with l < c).
+        ``arm_length`` (the tips' arm coordinate, S/2), ``arm_root_coord`` (where the
+        coil meets the rim: l_c + c / cos(pi/n) - r0 for ``frame``, c for ``axes``),
+        ``hub_radius``, ``wrap`` = 0, node sets ``hub_tied``, ``cross``, ``root_region``
+        (arm nodes with l < l_c).
     """
     if ties not in TIES:
         raise MeshValueError("ties", f"unknown hub ties '{ties}' (valid: {', '.join(TIES)})")
-    ref = mesh.node_ref
-    rest_min = float(np.min(mesh.elem_rest_len))
-    tol = 1e-6 * rest_min
-    a = float(np.max(np.abs(ref[:, :2])))
-    c = _cutout(ref)
     if hub_radius <= 0:
         raise MeshValueError("hub_radius", f"must be > 0, got {hub_radius:g} m")
+    tol = 1e-6 * float(np.min(mesh.elem_rest_len))
+    psi, c, gauge = _hole(mesh, tol)
+    n = len(psi)
     if c < hub_radius - tol:
-        raise MeshValueError("hub_cutout", f"the web's cut-out half-width {c:g} m is smaller "
+        raise MeshValueError("hub_cutout", f"the web's cut-out inradius {c:g} m is smaller "
                              f"than the hub radius {hub_radius:g} m: the tied nodes would lie "
                              "inside the hub (leave web.hub_cutout unset or make it >= r0)")
-    arm, cross, half, l = _classify(ref, tol)
-    tied = []
-    for j in range(4):
-        target = c * np.array([math.cos(j * math.pi / 2), math.sin(j * math.pi / 2)])
-        hit = np.flatnonzero((cross == j) & (np.abs(ref[:, :2] - target).max(axis=1) <= tol))
-        if len(hit) != 1:
-            raise MeshValueError("mesh_width", "the star fold needs the central cross x = 0, "
-                                 "y = 0 to be mesh lines: side/mesh_width must be even")
-        tied.append(hit[0])
-    root = c
-    if ties == "frame":
-        tied = _frame_nodes(ref, c, tol)
-        root = c + frame_lead_in(c, hub_radius)
+    arm, cross, _, l, _ = _classify(mesh.node_ref, psi, tol)
+    l_c = corner_coord(c, n)
+    if ties == "axes":
+        if n != 4:
+            raise MeshValueError("ties", "ties = 'axes' needs a square web; use 'frame'")
+        u = half_axes(psi)
+        tied = []
+        for j in range(4):
+            hit = np.flatnonzero((cross == j)
+                                 & (np.abs(mesh.node_ref[:, :2] - c * u[j]).max(axis=1) <= tol))
+            if len(hit) != 1:
+                raise MeshValueError("mesh_width", "ties = 'axes' needs the central cross "
+                                     "x = 0, y = 0 to be mesh lines: side/mesh_width must be even")
+            tied.append(hit[0])
+        root = c
+    else:
+        tied = np.flatnonzero(np.abs(gauge - c) <= tol)
+        if len(tied) <= n:
+            raise MeshValueError("hub_cutout", f"the hole (inradius {c:g} m) has only "
+                                 f"{len(tied)} boundary nodes: make it larger than a mesh cell")
+        root = l_c + frame_lead_in(c, hub_radius, n)
     coord = np.where(arm >= 0, l, np.nan)
+    tips = mesh.node_sets["tips"]
+    if not np.array_equal(arm[tips], np.arange(n)):
+        raise MeshValueError("topology", "the web's corners are not in arm order")
     sets = dict(mesh.node_sets)
     sets.update(hub_tied=np.array(tied, np.int64), cross=np.flatnonzero(cross >= 0),
-                root_region=np.flatnonzero((arm >= 0) & (l < c - tol)))
-    psi = math.pi / 4 + np.arange(4) * math.pi / 2
+                root_region=np.flatnonzero((arm >= 0) & (l < l_c - tol)))
     return mesh.replace(node_arm=arm, node_arm_coord=coord, arm_root_angle=psi,
-                        arm_length=a, arm_root_coord=root, hub_radius=float(hub_radius),
-                        wrap=0, node_sets=sets)
+                        arm_length=float(np.mean(l[tips])), arm_root_coord=root,
+                        hub_radius=float(hub_radius), wrap=0, node_sets=sets)
 
 
 def leg_path(l: np.ndarray, beta: np.ndarray, sigma: np.ndarray, c: float,
              r0: float) -> np.ndarray:
-    """Points P(l) [m] of the root-leg paths, 0 <= l <= c.
+    """Points P(l) [m] of the root-leg paths of the ``axes`` fold, 0 <= l <= c.
 
     The path runs from T = c (cos beta, sin beta) radially in to the rim, then along the
     rim by pi/4 in the direction ``sigma`` (+1 counter-clockwise) to the merge point;
@@ -199,23 +255,22 @@ def leg_path(l: np.ndarray, beta: np.ndarray, sigma: np.ndarray, c: float,
 
 
 def star_fold(mesh: Mesh) -> Mesh:
-    """Star fold of a QuadQuad web with arm data (:func:`assign_arms`), arms uncoiled.
+    """Star fold of a web with arm data (:func:`assign_arms`), arms uncoiled.
 
-    - Cross half j (all its nodes): at its tied point T_j (zero-length elements).
-    - Root legs, 0 <= l < c, of arm k:
-      ``frame`` -- gathered onto the frame edge they attach to: in local quadrant
-      coordinates the leg node (x', l) with x' > l (hanging from the y' = 0 side) at the
-      tied frame node (c, l), the node (l, y') with y' > l at (l, c);
-      ``axes`` -- the leg hanging from cross half j (j = k or k+1) on :func:`leg_path`
-      from T_j to M_k = r0 (cos psi_k, sin psi_k).
-    - l >= c (both legs and the diagonal): straight and radial,
-      (r_c + l - c) (cos psi_k, sin psi_k), from the frame corner r_c = c sqrt(2)
-      (``frame``) or from the rim point M_k, r_c = r0 (``axes``).
+    - Half-axis j (all its nodes): at T_j = c u_j (zero-length elements).
+    - Root legs, 0 <= l < l_c, of arm k:
+      ``frame`` -- the leg hanging from half-axis j at T_j + l e_kj on the frame edge
+      through T_j, e_kj the unit vector from T_j to the frame corner K_k (for the square
+      web in local quadrant coordinates: (x', l) -> (c, l));
+      ``axes`` -- on :func:`leg_path` from T_j to M_k = r0 (cos psi_k, sin psi_k).
+    - l >= l_c (both legs and the bisector): straight and radial,
+      (r_c + l - l_c) (cos psi_k, sin psi_k), from the frame corner r_c = c / cos(pi/n)
+      (``frame``) or from the rim point M_k, r_c = r0 (``axes``, l_c = c).
 
-    Nodes with equal (arm, leg, l) coincide: the transverse mesh lines are gathered
-    (concertina) into zero-length elements. The map is 1-Lipschitz in l, and |l| changes
-    by at most an element's rest length along any element, so no element is stretched.
-    The tie mode is read from the mesh (:func:`tie_mode`).
+    For ``frame`` this is the nearest-point projection onto the frame polygon plus the
+    radial run-out in the corners' normal cones: 1-Lipschitz, so no element is
+    stretched. Nodes with equal (arm, leg, l) coincide: the mesh lines are gathered
+    (concertina) across the arm. The tie mode is read from the mesh (:func:`tie_mode`).
 
     Returns
     -------
@@ -225,42 +280,43 @@ def star_fold(mesh: Mesh) -> Mesh:
     ties = tie_mode(mesh)
     ref = mesh.node_ref
     tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-    arm, cross, half, l = _classify(ref, tol)
-    r0, psi = mesh.hub_radius, mesh.arm_root_angle
-    c = _cutout(ref)
+    psi, c, _ = _hole(mesh, tol)
+    n = len(psi)
+    arm, cross, half, l, _ = _classify(ref, psi, tol)
+    r0 = mesh.hub_radius
+    u = half_axes(psi)
     xy = np.zeros((mesh.n_nodes, 2))
     is_cross = cross >= 0
-    beta_c = cross[is_cross] * (math.pi / 2)
-    xy[is_cross] = c * np.column_stack([np.cos(beta_c), np.sin(beta_c)])
-    leg = (arm >= 0) & (l < c)
-    k = arm[leg]
-    j = half[leg]
+    xy[is_cross] = c * u[cross[is_cross]]
+    l_c = corner_coord(c, n) if ties == "frame" else c
+    leg = (arm >= 0) & (l < l_c)
+    k, j = arm[leg], half[leg]
     if ties == "frame":
-        # local (x', y') -> (c, l) on the y' = 0 side, (l, c) on the x' = 0 side
-        loc = np.where((j == k)[:, None], np.column_stack([np.full(len(k), c), l[leg]]),
-                       np.column_stack([l[leg], np.full(len(k), c)]))
-        rot = _ROT[k]                                   # global -> local; transpose back
-        xy[leg] = np.einsum("pji,pj->pi", rot, loc)
-        r_c = c * math.sqrt(2.0)
+        corner = (c / _COS[n]) * _unit(psi)
+        e = (corner[k] - c * u[j]) / l_c
+        xy[leg] = c * u[j] + l[leg, None] * e
+        r_c = c / _COS[n]
     else:
         sigma = np.where(j == k, 1.0, -1.0)         # from beta_k ccw, from beta_(k+1) cw
         beta = np.where(j == k, k, k + 1) * (math.pi / 2)
         xy[leg] = leg_path(l[leg], beta, sigma, c, r0)
         r_c = r0
     out = (arm >= 0) & ~leg
-    r = r_c + l[out] - c
-    ang = psi[arm[out]]
-    xy[out] = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+    r = r_c + l[out] - l_c
+    xy[out] = r[:, None] * _unit(psi)[arm[out]]
     xy[mesh.node_sets["hub_tied"]] = ref[mesh.node_sets["hub_tied"], :2]
     pos = np.column_stack([xy, np.zeros(mesh.n_nodes)])
     return mesh.replace(node_pos=pos)
 
 
 def _lead_in(mesh: Mesh) -> float:
-    """Radial lead-in of the coil: d0 = c sqrt(2) - r0 for a ``frame``-tied web, else 0."""
+    """Radial lead-in of the coil: d0 = c / cos(pi/n) - r0 for a ``frame``-tied web,
+    else 0."""
     try:
         if tie_mode(mesh) == "frame":
-            return mesh.arm_root_coord - _cutout(mesh.node_ref)
+            tol = 1e-6 * float(np.min(mesh.elem_rest_len))
+            _, c, _ = _hole(mesh, tol)
+            return mesh.arm_root_coord - corner_coord(c, mesh.n_arms)
     except MeshValueError:
         pass
     return 0.0
@@ -278,7 +334,7 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
 
     The input arm is straight and radial from radius r0 + d at l = l0 - d outwards
     (:func:`star_fold`; tethers and the ``axes`` web: d = 0, the arm starts on the rim;
-    the ``frame`` web: d = c sqrt(2) - r0, the arm starts at the frame corner and the
+    the ``frame`` web: d = c / cos(pi/n) - r0, the arm starts at the frame corner and the
     coil folds its first d back in to the rim).
 
     Parameters
@@ -287,7 +343,7 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
         Mesh with arm data, ``hub_radius > 0``, arms straight and radial beyond the root.
     wrap : {'trailing', 'leading'}
     lead_in : float or None [m]
-        d; None: c sqrt(2) - r0 for a ``frame``-tied web (:func:`tie_mode`), else 0.
+        d; None: c / cos(pi/n) - r0 for a ``frame``-tied web (:func:`tie_mode`), else 0.
 
     Returns
     -------
@@ -317,8 +373,9 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
 
 def fold_web(mesh: Mesh, hub_radius: float, pattern: str = "star",
              wrap: str = "trailing", ties: str = "frame") -> Mesh:
-    """Flat QuadQuad web -> arms + ties (``flat``) or star fold + coil (``star``);
-    ``ties`` = ``frame`` (the whole hole boundary, default) or ``axes`` (4 nodes)."""
+    """Flat web with an outline-shaped hole -> arms + ties (``flat``) or star fold + coil
+    (``star``); ``ties`` = ``frame`` (the whole hole boundary, default) or ``axes``
+    (4 nodes, square web only)."""
     if pattern not in ("star", "flat"):
         raise MeshValueError("pattern", f"unknown web fold '{pattern}' (valid: star, flat)")
     web = assign_arms(mesh, hub_radius, ties)

@@ -204,45 +204,72 @@ def _on_sides(pts, corners, tol):
     return (np.abs(cross) <= tol) & (u >= -1e-9) & (u <= 1 + 1e-9)
 
 
-def _clip(pts, edges, corners, t, snap):
-    """Clip a lattice to the outline; returns nodes, edges, boundary-edge flag, corner ids."""
+def _clip(pts, edges, corners, t, snap, hole=None):
+    """Clip a lattice to the outline (and out of an optional convex ``hole``).
+
+    Returns nodes, edges, edge label (-1 mesh cable, 0 outline cable, 1 hole-outline
+    cable) and the node ids of the outline corners followed by the hole corners.
+    """
     delta = snap * t
     q, dist, inside, to_corner = _nearest_on_outline(pts, corners, delta)
     near = (dist <= delta) | to_corner
     keep = inside | near
-    interior = keep & ~near
     pos = np.where(near[:, None], q, pts)
+    in_hole = np.zeros(len(pts), bool)
+    hole = np.zeros((0, 2)) if hole is None else np.asarray(hole, float)
+    if len(hole):
+        qh, dist_h, inside_h, to_corner_h = _nearest_on_outline(pts, hole, delta)
+        near_h = (dist_h <= delta) | to_corner_h
+        pos = np.where(near_h[:, None], qh, pos)
+        in_hole = inside_h & ~near_h
+        keep &= ~in_hole
+        near |= near_h
+    interior = keep & ~near
     a, b = edges[:, 0], edges[:, 1]
-    kept_edges = edges[keep[a] & keep[b]]
+    kept = keep[a] & keep[b]
+    if len(hole):   # a chord between two points of the hole's rim crosses the hole
+        mid = 0.5 * (pos[a[kept]] + pos[b[kept]])
+        _, dist_m, inside_m, _ = _nearest_on_outline(mid, hole, 0.0)
+        kept[np.flatnonzero(kept)[inside_m & (dist_m > 1e-9 * t)]] = False
+    kept_edges = edges[kept]
     cut = (interior[a] & ~keep[b]) | (interior[b] & ~keep[a])
     p_in = np.where(interior[a[cut]], a[cut], b[cut])
     p_out = np.where(interior[a[cut]], b[cut], a[cut])
     x_cut = _exit_point(pts[p_in], pts[p_out], corners)
+    into = in_hole[p_out]          # an edge entering the hole is cut where it enters
+    if into.any():
+        x_cut[into] = _exit_point(pts[p_out[into]], pts[p_in[into]], hole)
     n0 = len(pts)
-    all_pts = np.vstack([pos, x_cut, corners])
+    all_pts = np.vstack([pos, x_cut, corners, hole])
     all_edges = np.vstack([kept_edges, np.column_stack([p_in, n0 + np.arange(len(x_cut))])])
-    alive = np.concatenate([keep, np.ones(len(x_cut) + len(corners), bool)])
+    n_new = len(x_cut) + len(corners) + len(hole)
+    alive = np.concatenate([keep, np.ones(n_new, bool)])
     # merge boundary points closer than delta: corners first, then lattice nodes
-    prio = np.concatenate([np.ones(n0), 2 * np.ones(len(x_cut)), np.zeros(len(corners))])
-    on_bnd = np.concatenate([near, np.ones(len(x_cut) + len(corners), bool)])
+    prio = np.concatenate([np.ones(n0), 2 * np.ones(len(x_cut)),
+                           np.zeros(len(corners) + len(hole))])
+    on_bnd = np.concatenate([near, np.ones(n_new, bool)])
     rep = np.arange(len(all_pts))
     bidx = np.flatnonzero(on_bnd & alive)
     rep[bidx] = bidx[_merge_close(all_pts[bidx], delta, prio[bidx])]
     rep[~alive] = -1
     all_edges = all_edges[(rep[all_edges] >= 0).all(axis=1)]
-    corner_old = n0 + len(x_cut) + np.arange(len(corners))
+    corner_old = n0 + len(x_cut) + np.arange(len(corners) + len(hole))
     keep_idx = np.unique(rep[rep >= 0])
     new = np.full(len(all_pts), -1)
     new[keep_idx] = np.arange(len(keep_idx))
     e = new[rep[all_edges]]
     e = np.unique(np.sort(e[e[:, 0] != e[:, 1]], axis=1), axis=0)
-    return _close_boundary(all_pts[keep_idx], e, corners, new[corner_old], t)
+    polygons = [corners] + ([hole] if len(hole) else [])
+    return _close_boundary(all_pts[keep_idx], e, polygons, new[rep[corner_old]], t)
 
 
-def _close_boundary(pts, edges, corners, corner_ids, t):
-    """Replace cables along the outline by one boundary chain per side; prune loose nodes."""
-    sides = _on_sides(pts, corners, 1e-7 * t)
-    d = np.roll(corners, -1, axis=0) - corners
+def _close_boundary(pts, edges, polygons, corner_ids, t):
+    """Replace cables along each polygon (outline, hole) by one boundary chain per side;
+    prune loose nodes. Returns nodes, edges, edge label (-1 or polygon index), corners."""
+    sides = np.hstack([_on_sides(pts, poly, 1e-7 * t) for poly in polygons])
+    starts = np.vstack(polygons)
+    d = np.vstack([np.roll(poly, -1, axis=0) - poly for poly in polygons])
+    owner = np.concatenate([np.full(len(poly), i) for i, poly in enumerate(polygons)])
     alive = np.ones(len(pts), bool)
     shared = (sides[edges[:, 0]] & sides[edges[:, 1]]).any(axis=1)
     inner = edges[~shared]
@@ -256,18 +283,17 @@ def _close_boundary(pts, edges, corners, corner_ids, t):
         if not drop.any():
             break
         alive &= ~drop
-    chains = []
-    for k in range(len(corners)):
+    chains, labels = [], [np.full(len(inner), -1)]
+    for k in range(len(starts)):
         ids = np.flatnonzero(sides[:, k] & alive)
-        u = (pts[ids] - corners[k]) @ d[k]
+        u = (pts[ids] - starts[k]) @ d[k]
         ids = ids[np.argsort(u)]
         chains.append(np.column_stack([ids[:-1], ids[1:]]))
-    bnd = np.concatenate(chains)
-    all_edges = np.vstack([inner, bnd])
-    flag = np.concatenate([np.zeros(len(inner), bool), np.ones(len(bnd), bool)])
+        labels.append(np.full(len(ids) - 1, owner[k]))
+    all_edges = np.vstack([inner] + chains)
     new = np.full(len(pts), -1)
     new[alive] = np.arange(alive.sum())
-    return pts[alive], new[all_edges], flag, new[corner_ids]
+    return pts[alive], new[all_edges], np.concatenate(labels), new[corner_ids]
 
 
 # --- assembly ------------------------------------------------------------------------
@@ -313,9 +339,38 @@ def _subdivide(pts, edges, k):
     return np.vstack([pts, mid]), elems, np.repeat(np.arange(len(edges)), k)
 
 
+def outline_hole(topology: str, side: float, inradius: float) -> np.ndarray:
+    """(n, 2) corners [m] of a hole shaped like the web outline, of inradius ``inradius``
+    (the hub frame of the star fold: sides parallel to the web's sides)."""
+    shape = "tri" if topology.startswith("tri") else "quad"
+    corners = web_outline(shape, side)
+    r_in = side / (2 * _SQ3) if shape == "tri" else side / 2
+    return corners * (inradius / r_in)
+
+
+def outline_cutout(topology: str, side: float, mesh_width: float, hub_cutout: float) -> float:
+    """Inradius c [m] of the outline-shaped hole actually cut for a star fold.
+
+    ``tritri`` with S/t an integer: rounded outwards to the nearest mesh line, so that the
+    hole's sides are cables of the mesh (c = h/3 - i t sqrt(3)/2, h = S sqrt(3)/2); other
+    topologies: ``hub_cutout`` itself (the hole outline becomes a cable that clips the
+    mesh, as the web outline does).
+    """
+    if hub_cutout <= 0:
+        raise MeshValueError("hub_cutout", f"the star fold needs a hub cut-out > 0, "
+                             f"got {hub_cutout:g} m")
+    n = side / mesh_width
+    if topology == "tritri" and abs(n - round(n)) <= 1e-9 * n:
+        top = side / (2 * _SQ3)                       # h/3: inradius of the web
+        step = mesh_width * _SQ3 / 2
+        i = math.floor((top - hub_cutout) / step + 1e-9)
+        return top - i * step
+    return float(hub_cutout)
+
+
 def flat_other(topology: str, side: float, mesh_width: float, elements_per_segment: int = 1,
                corner_mass: float = 0.0, hub_cutout: float | None = 0.0,
-               snap: float = SNAP) -> Mesh:
+               snap: float = SNAP, hole: str = "disc") -> Mesh:
     """A flat web of one of the paper's Fig. 2 configurations (not ``quadquad``).
 
     Parameters
@@ -331,11 +386,17 @@ def flat_other(topology: str, side: float, mesh_width: float, elements_per_segme
     corner_mass : float [kg]
         Point mass at each web corner.
     hub_cutout : float or None [m]
-        Radius of the central disc whose nodes are removed (0 or None: no hole); the
-        nodes left on its rim form ``hub_tied``.
+        Size of the central hole (0 or None: no hole): the radius of a disc whose nodes
+        are removed (``hole='disc'``), or the inradius of a hole shaped like the web
+        outline (``hole='outline'``, see :func:`outline_hole`).
     snap : float
         Fraction of t within which lattice nodes are moved onto the outline and boundary
         points are merged.
+    hole : {'disc', 'outline'}
+        ``disc``: the nodes left on the rim (those that lost a cable) form ``hub_tied``.
+        ``outline``: the hole is clipped like the outline, its boundary is a cable
+        polygon through its corners, and every node on it (subdivision nodes included)
+        forms ``hub_tied`` and ``hole_boundary``: the rigid hub frame of the star fold.
 
     Raises
     ------
@@ -346,8 +407,9 @@ def flat_other(topology: str, side: float, mesh_width: float, elements_per_segme
     -------
     Mesh
         z = 0, ``node_pos == node_ref``; node sets ``corners`` = ``tips`` (sorted by polar
-        angle in [0, 2 pi)), ``boundary``, ``hub_tied``;
-        element set ``boundary`` (the outline cable).
+        angle in [0, 2 pi)), ``boundary``, ``hub_tied`` (and ``hole_boundary``,
+        ``hole_corners`` for an outline hole); element sets ``boundary`` (the outline
+        cable) and ``hole_boundary``.
     """
     if not 0 < mesh_width <= side / 2:
         raise MeshValueError("mesh_width", f"need 0 < mesh_width <= side/2, got "
@@ -357,11 +419,21 @@ def flat_other(topology: str, side: float, mesh_width: float, elements_per_segme
                              f"must be >= 1, got {elements_per_segment}")
     if corner_mass < 0:
         raise MeshValueError("corner_mass", f"must be >= 0, got {corner_mass:g} kg")
+    if hole not in ("disc", "outline"):
+        raise MeshValueError("hole", f"unknown hole shape '{hole}' (valid: disc, outline)")
     t = float(mesh_width)
     lat, lat_edges, corners = _lattice_for(topology, float(side), t)
-    pts, edges, bflag, corner_ids = _clip(lat, lat_edges, corners, t, snap)
+    hole_xy = None
+    if hole == "outline" and hub_cutout:
+        r_in = side / (2 * _SQ3) if topology.startswith("tri") else side / 2
+        if hub_cutout > r_in - t:
+            raise MeshValueError("hub_cutout", f"a hole of inradius {hub_cutout:g} m leaves "
+                                 f"less than one mesh width ({t:g} m) of web beside it")
+        hole_xy = outline_hole(topology, side, hub_cutout)
+    pts, edges, label, corner_ids = _clip(lat, lat_edges, corners, t, snap, hole_xy)
+    hole_ids, corner_ids = corner_ids[len(corners):], corner_ids[:len(corners)]
     hub_tied = np.zeros(0, np.int64)
-    if hub_cutout:
+    if hub_cutout and hole_xy is None:
         r = np.hypot(pts[:, 0], pts[:, 1])
         gone = r < hub_cutout * (1 - 1e-12)
         if gone[corner_ids].any():
@@ -370,25 +442,30 @@ def flat_other(topology: str, side: float, mesh_width: float, elements_per_segme
         hub_tied = np.setdiff1d(np.unique(edges[hit]), np.flatnonzero(gone))
         new = np.full(len(pts), -1)
         new[~gone] = np.arange((~gone).sum())
-        pts, edges, bflag = pts[~gone], new[edges[~hit]], bflag[~hit]
+        pts, edges, label = pts[~gone], new[edges[~hit]], label[~hit]
         corner_ids, hub_tied = new[corner_ids], new[hub_tied]
     # deterministic node order: by row (y), then x
     order = np.lexsort((pts[:, 0], np.round(pts[:, 1] / t, 6)))
     rank = np.empty(len(pts), np.int64)
     rank[order] = np.arange(len(pts))
     pts, edges = pts[order], np.sort(rank[edges], axis=1)
-    corner_ids, hub_tied = rank[corner_ids], np.sort(rank[hub_tied])
+    corner_ids, hub_tied, hole_ids = rank[corner_ids], np.sort(rank[hub_tied]), rank[hole_ids]
     ang = np.mod(np.arctan2(pts[corner_ids, 1], pts[corner_ids, 0]), 2 * np.pi)
     corner_ids = corner_ids[np.argsort(ang)]
-    boundary_nodes = np.unique(edges[bflag])
+    boundary_nodes = np.unique(edges[label == 0])
     nodes2, elems, parent = _subdivide(pts, edges, int(elements_per_segment))
     seg_len = np.linalg.norm(pts[edges[:, 1]] - pts[edges[:, 0]], axis=1)
     rest = seg_len[parent] / int(elements_per_segment)
     xyz = np.column_stack([nodes2, np.zeros(len(nodes2))])
     mass = np.zeros(len(nodes2))
     mass[corner_ids] = corner_mass
+    node_sets = {"corners": corner_ids, "tips": corner_ids, "boundary": boundary_nodes}
+    hole_elems = np.flatnonzero(label[parent] == 1)
+    if hole_xy is not None:
+        hub_tied = np.unique(elems[hole_elems])
+        node_sets.update(hole_boundary=hub_tied, hole_corners=hole_ids)
+    node_sets["hub_tied"] = hub_tied
     return Mesh(node_pos=xyz, node_ref=xyz.copy(), elem_nodes=elems, elem_rest_len=rest,
-                node_point_mass=mass,
-                node_sets={"corners": corner_ids, "tips": corner_ids, "hub_tied": hub_tied,
-                           "boundary": boundary_nodes},
-                elem_sets={"boundary": np.flatnonzero(bflag[parent])})
+                node_point_mass=mass, node_sets=node_sets,
+                elem_sets={"boundary": np.flatnonzero(label[parent] == 0),
+                           "hole_boundary": hole_elems})

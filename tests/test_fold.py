@@ -192,11 +192,14 @@ def test_mass_fractions_paper_web():
 def test_star_fold_rejects_bad_webs():
     odd = flat_quadquad(21.0, 1.0, 1, 0.0, 1.5)
     with pytest.raises(ValueError, match="even"):
-        assign_arms(odd, 1.0)
+        assign_arms(odd, 1.0, "axes")
+    # the frame needs no mesh line on the half-axes: an odd grid folds too
+    folded = coil(star_fold(assign_arms(odd, 1.0)))
+    assert tie_mode(folded) == "frame" and check_mesh(folded) == []
     flat = flat_quadquad(20.0, 1.0, 1, 0.0, 1.0)
     with pytest.raises(ValueError, match="smaller than the hub radius"):
         assign_arms(flat, 2.0)
-    with pytest.raises(ValueError, match="quadquad only"):
+    with pytest.raises(ValueError, match="assign_arms"):
         star_fold(flat)
 
 
@@ -210,14 +213,14 @@ def test_build_mesh_maps_errors_to_case_keys():
         loads(base, ["fold.ties='rim'"])
     assert e.value.key == "fold.ties"
     with pytest.raises(InputError) as e:
-        build_mesh(loads(base, ["web.side=21.0"]))
+        build_mesh(loads(base, ["web.side=21.0", "fold.ties='axes'"]))
     assert e.value.key == "web.mesh_width"
     with pytest.raises(InputError) as e:
         build_mesh(loads(base, ["web.hub_cutout=0.5", "web.mesh_width=0.5"]))
     assert e.value.key == "web.hub_cutout"
     with pytest.raises(InputError) as e:
-        build_mesh(loads(base, ["web.topology=tritri"]))
-    assert e.value.key == "fold.pattern" and "quadquad only" in e.value.reason
+        build_mesh(loads(base, ["web.topology=tritri", "fold.ties='axes'"]))
+    assert e.value.key == "fold.ties" and "square web" in e.value.reason
 
 
 def test_root_legs_two_points_per_coordinate(stages):

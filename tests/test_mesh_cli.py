@@ -109,10 +109,10 @@ def test_main_mesh(tmp_path, case, monkeypatch):
 
 def test_main_mesh_bad_input_exit_2(tmp_path, capsys, monkeypatch):
     main = _main(monkeypatch)
-    rc = main(["mesh", str(CASES / "demo.toml"), "-o", str(tmp_path), "--set", "web.side=21.0"])
+    rc = main(["mesh", str(CASES / "demo.toml"), "-o", str(tmp_path), "--set", "web.side=20.5"])
     assert rc == 2
     err = capsys.readouterr().err
-    assert "web.mesh_width" in err and "even" in err and "Traceback" not in err
+    assert "web.mesh_width" in err and "integer multiple" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize("case", sorted(p.name for p in CASES.glob("*.toml")))
