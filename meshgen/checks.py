@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from meshgen.mesh import Mesh
+from meshgen.mesh import POLYGON_TAN, Mesh
 
 
 class MeshValueError(ValueError):
@@ -100,12 +100,13 @@ def check_mesh(mesh: Mesh, tol: float = 1e-9) -> list[str]:
     return bad
 
 
-def arm_mass_profile(mesh: Mesh, node_mass: np.ndarray, arm: int):
+def arm_mass_profile(mesh: Mesh, node_mass: np.ndarray, arm: int, h: float | None = None):
     """Mass of one arm deposited on the grid l_i = i h of arm coordinates (cloud in cell).
 
     Each node of the arm gives its lumped mass to the two nearest grid points with linear
     (hat-function) weights, so nodes that lie between grid lines (``elements_per_segment
-    > 1``) are split without ambiguity.
+    > 1``, or any node of a mesh whose lines are not parallel to the half-axes) are split
+    without ambiguity.
 
     Parameters
     ----------
@@ -115,19 +116,21 @@ def arm_mass_profile(mesh: Mesh, node_mass: np.ndarray, arm: int):
         Lumped node masses (cable only, or with point masses).
     arm : int
         Arm index.
+    h : float or None [m]
+        Grid spacing; None: the smallest spacing of the mesh lines of a QuadQuad web (the
+        mesh width).
 
     Returns
     -------
     l : (K,) float64 [m]
-        Grid points 0, h, ..., arm_length with h the smallest spacing of the arm's
-        mesh lines (the mesh width).
+        Grid points 0, h, ..., K h, K = round(arm_length / h).
     m : (K,) float64 [kg]
         Mass deposited on each grid point.
     """
     sel = mesh.node_arm == arm
     l = mesh.node_arm_coord[sel]
     H = mesh.arm_length
-    h = _line_spacing(mesh)
+    h = _line_spacing(mesh) if h is None else float(h)
     K = int(round(H / h))
     x = l / h
     i0 = np.clip(np.floor(x).astype(np.int64), 0, K - 1)
@@ -146,50 +149,81 @@ def _line_spacing(mesh: Mesh) -> float:
     return float(np.min(np.diff(x)))
 
 
-def eq7_reference(l: np.ndarray, h: float, half_side: float, cutout: float,
-                  areal_density: float) -> np.ndarray:
-    """Exact hat-weighted arm mass on the grid l_i for the density of docs/mesh.md.
+def arm_density(l: np.ndarray, arm_length: float, corner: float, areal_density: float,
+                n_arms: int = 4) -> np.ndarray:
+    """Line density rho_L(l) [kg/m] of a star-folded arm (docs/mesh.md).
 
-    rho_L(l) = 2 rho_A (a - max(l, c)): Eq. 7 (with H = a) for l >= c, and constant in
-    the gathered root region l < c where the central square of half-width c is cut out.
-    The kink at l = c is a grid point, so each half-hat integrates a linear function.
+    rho_L(l) = 2 rho_A cot(pi/n) (H - max(l, l_c)): Eq. 7 of the paper (linear, zero at
+    the tip, m_w / n per arm for the whole web) for l >= l_c, and constant in the root
+    region l < l_c gathered on the hub frame, where the outline-shaped hole of inradius
+    c = l_c / tan(pi/n) is cut out. Square web: 2 rho_A (a - max(l, c)).
 
     Parameters
     ----------
     l : (K,) float64 [m]
-        Grid points 0, h, ..., a.
-    h : float [m]
-    half_side, cutout : float [m]
-        a = S/2 and c.
+    arm_length, corner : float [m]
+        H = S/2 and l_c (c for the square web, c sqrt(3) for the triangular web).
     areal_density : float [kg/m^2]
+    n_arms : {3, 4}
+    """
+    cot = 1.0 / POLYGON_TAN[n_arms]
+    rho = 2.0 * areal_density * cot * (arm_length - np.maximum(l, corner))
+    return np.where((l >= 0) & (l <= arm_length), rho, 0.0)
+
+
+def eq7_reference(l: np.ndarray, h: float, arm_length: float, corner: float,
+                  areal_density: float, n_arms: int = 4) -> np.ndarray:
+    """Exact hat-weighted arm mass on the grid l_i for :func:`arm_density`.
+
+    Each half-hat [l_i - h, l_i], [l_i, l_i + h], clipped to [0, H], is split at the
+    kink l_c; on each piece the integrand is a quadratic polynomial, which 2-point
+    Gauss-Legendre integrates exactly.
+
+    Parameters
+    ----------
+    l : (K,) float64 [m]
+        Grid points 0, h, ..., K h.
+    h : float [m]
+    arm_length, corner : float [m]
+        H and l_c.
+    areal_density : float [kg/m^2]
+    n_arms : {3, 4}
 
     Returns
     -------
     (K,) float64 [kg]
     """
-    a, c, rA = half_side, cutout, areal_density
-    rho = 2.0 * rA * (a - np.maximum(l, c))
-    g_left = np.where(l > c + 1e-9 * h, -2.0 * rA, 0.0)    # slope on [l - h, l]
-    g_right = np.where(l >= c - 1e-9 * h, -2.0 * rA, 0.0)  # slope on [l, l + h]
-    left = np.where(l > 0.5 * h, rho * h / 2 - g_left * h * h / 6, 0.0)
-    right = np.where(l < a - 0.5 * h, rho * h / 2 + g_right * h * h / 6, 0.0)
-    return left + right
+    H = arm_length
+    g = 1.0 / np.sqrt(3.0)
+    out = np.zeros(len(l))
+    for lo, hi, rising in ((-h, 0.0, True), (0.0, h, False)):
+        a, b = np.clip(l + lo, 0.0, H), np.clip(l + hi, 0.0, H)
+        m = np.clip(corner, a, b)
+        for x0, x1 in ((a, m), (m, b)):
+            mid, half = 0.5 * (x0 + x1), 0.5 * (x1 - x0)
+            for x in (mid - g * half, mid + g * half):
+                w = (x - (l - h)) / h if rising else (l + h - x) / h
+                out += half * w * arm_density(x, H, corner, areal_density, n_arms)
+    return out
 
 
 def eq7_error(mesh: Mesh, node_mass: np.ndarray, areal_density: float,
-              cutout: float, beyond_root: bool = False) -> float:
+              cutout: float, beyond_root: bool = False, h: float | None = None) -> float:
     """Relative L1 error of the arms' deposited mass against the exact density.
 
     Returns ``sum_i |m_i - m_i,exact| / sum_i m_i,exact`` over all arms (cable mass only
-    should be passed in ``node_mass``). With ``beyond_root`` only grid points whose hat
-    lies entirely in l >= c count: there the reference is Eq. 7 itself.
+    should be passed in ``node_mass``); ``cutout`` is the hole inradius c, ``h`` the grid
+    spacing (:func:`arm_mass_profile`). With ``beyond_root`` only grid points whose hat
+    lies entirely in l >= l_c count: there the reference is Eq. 7 itself.
     """
     err = tot = 0.0
-    for k in range(mesh.n_arms):
-        l, m = arm_mass_profile(mesh, node_mass, k)
-        h = l[1] - l[0]
-        ref = eq7_reference(l, h, mesh.arm_length, cutout, areal_density)
-        use = l >= cutout + h - 1e-9 * h if beyond_root else np.ones(len(l), bool)
+    n = mesh.n_arms
+    corner = cutout * POLYGON_TAN[n]
+    for k in range(n):
+        l, m = arm_mass_profile(mesh, node_mass, k, h)
+        step = l[1] - l[0]
+        ref = eq7_reference(l, step, mesh.arm_length, corner, areal_density, n)
+        use = l >= corner + step - 1e-9 * step if beyond_root else np.ones(len(l), bool)
         err += np.abs(m - ref)[use].sum()
         tot += ref[use].sum()
     return err / tot

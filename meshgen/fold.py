@@ -34,14 +34,12 @@ import math
 import numpy as np
 
 from meshgen.checks import MeshValueError
-from meshgen.mesh import Mesh
+from meshgen.mesh import POLYGON_COS, POLYGON_TAN, Mesh
 
 WRAP_SIGN = {"trailing": 1, "leading": -1}
 #: hub attachments of the star-folded web: the whole hole boundary, or the 4 axis nodes
 TIES = ("frame", "axes")
-#: per number of arms n: cos(pi/n) and tan(pi/n), exact where float allows
-_COS = {3: 0.5, 4: math.sqrt(0.5)}
-_TAN = {3: math.sqrt(3.0), 4: 1.0}
+_COS, _TAN = POLYGON_COS, POLYGON_TAN
 
 
 def _unit(angle: np.ndarray) -> np.ndarray:

@@ -14,6 +14,11 @@ from typing import Mapping
 
 import numpy as np
 
+#: per number of web corners n (the star fold's arms): cos(pi/n) and tan(pi/n), exact
+#: where float allows (math.tan(pi/4) is not 1.0)
+POLYGON_COS = {3: 0.5, 4: 0.5 ** 0.5}
+POLYGON_TAN = {3: 3.0 ** 0.5, 4: 1.0}
+
 
 def _frozen(a, dtype):
     a = np.ascontiguousarray(a, dtype=dtype)

@@ -3,7 +3,7 @@
 Each arm (tether) has a root point R on the hub rim (hub-frame angle theta_R), a tip node,
 and a *spine*: for every arm-coordinate level from the root to the tip, the outermost node(s)
 of the flat web at that level (a tether: all its nodes; a star-folded web arm: its two
-boundary edges). At each history row:
+outline edges, the half sides that meet at its corner). At each history row:
 
 - wound length w = arm coordinate (minus the root's) of the last spine level that is still,
   together with every level before it, on the hub (planar radius <= r0 (1 + 1e-3));
@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from meshgen.fold import half_axes
+
 CONTACT_TOL = 1e-3  # relative radius tolerance for "on the hub"
 
 
@@ -44,9 +46,11 @@ def arm_probes(mesh):
     n_arms = mesh.n_arms
     arm, coord = mesh.node_arm, mesh.node_arm_coord
     ref = mesh.node_ref
-    reach = np.max(np.abs(ref[:, :2]), axis=1)
     s_idx, s_arm, s_lev, s_coord = [], [], [], []
     if n_arms == len(tips):
+        # outermost: largest gauge max_j P.u_j over the half-axes u_j (max(|x|, |y|) for
+        # the square web): the web's outline edges that become the arm's edges
+        reach = np.max(ref[:, :2] @ half_axes(mesh.arm_root_angle).T, axis=1)
         for k in range(n_arms):
             nodes = np.flatnonzero((arm == k) & (coord >= mesh.arm_root_coord - 1e-9))
             levels = np.unique(np.round(coord[nodes], 9))
@@ -65,7 +69,8 @@ def arm_probes(mesh):
 def deployed_length(mesh) -> np.ndarray:
     """(n_arms,) [m] arm length L of the fully deployed (flat, reference) state: the distance
     from each arm's root point on the rim to its tip in ``node_ref`` (a tether: H; a
-    star-folded web arm: the flat web's corner distance from the rim, a sqrt(2) - r0)."""
+    star-folded web arm: the flat web's corner distance from the rim, a sqrt(2) - r0 for
+    the square web, S / sqrt(3) - r0 for the triangular web)."""
     tips = np.asarray(mesh.node_sets["tips"])
     ang = mesh.arm_root_angle if mesh.n_arms == len(tips) else np.arctan2(
         mesh.node_ref[tips, 1], mesh.node_ref[tips, 0])
