@@ -2,7 +2,7 @@
 
 One command runs the whole study (about 10 minutes of wall time on one core)::
 
-    .venv/bin/python benchmarks/validate_analytic.py [--only tethers,web,effects,figs]
+    .venv/bin/python benchmarks/validate_analytic.py [--only tethers,web,tri,effects,figs]
 
 It writes ``benchmarks/results/validation/*.json`` (error tables, timings), overlaid
 four-panel plots ``benchmarks/results/validation/*.png`` and the figures quoted by
@@ -116,28 +116,34 @@ def web_params(case, mesh, model, root="hub"):
     The free arm is the part beyond the gathered root region: H = arm_length - arm_root_coord
     (42.5 m for the paper web), its roots at the merge points M_k on the rim. Its mass is
     taken from the FE lumped masses: per arm, the cable mass of the nodes with arm coordinate
-    >= c (tip node: cable only, the corner mass is m_tip) split into the Eq. 7 profile
-    (m_lin = rho_A H^2) and the rest as a uniform tether (the edge lines' excess). The root
-    region and the central cross (nodes with l < c or no arm), gathered between the ties and
+    >= l0 (tip node: cable only, the corner mass is m_tip) split into the Eq. 7 profile
+    (m_lin = rho_A cot(pi/n) H^2: rho_A H^2 for the square web, rho_A H^2 / sqrt(3) for the
+    triangular web) and the rest as a uniform tether (the edge lines' excess). The root
+    region and the half-axes (nodes with l < l0 or no arm), gathered between the ties and
     the rim, turn with the hub: with root='hub' their inertia sum m r^2 (folded positions) is
     added to J_hub; root='drop' leaves it out (J_hub alone) to show its weight.
     """
+    from meshgen.mesh import POLYGON_TAN
+    from meshgen.topologies import cable_length_per_area
+
     c, a, r0 = mesh.arm_root_coord, mesh.arm_length, case.hub.radius
     H = a - c
+    n = mesh.n_arms
     m = model.node_mass - mesh.node_point_mass
     arm, l = mesh.node_arm, mesh.node_arm_coord
     free = (arm == 0) & (l >= c - 1e-9)
     m_free = float(m[free].sum())
     rho_a = case.web.areal_density
     if rho_a is None:
-        rho_a = 2.0 * case.cable.density * case.cable.area / case.web.mesh_width
-    m_lin = min(rho_a * H * H, m_free)
+        rho_a = (case.cable.density * case.cable.area
+                 * cable_length_per_area(case.web.topology, case.web.mesh_width))
+    m_lin = min(rho_a * H * H / POLYGON_TAN[n], m_free)
     m_uni = m_free - m_lin
     inner = ~((arm >= 0) & (l >= c - 1e-9))
     r2 = mesh.node_pos[:, 0] ** 2 + mesh.node_pos[:, 1] ** 2
     J_root = float(np.sum(model.node_mass[inner] * r2[inner]))
     J_hub = case.hub.inertia + (J_root if root == "hub" else 0.0)
-    p = ArmParams(n=4, H=H, r0=r0, J_hub=J_hub, m_tip=case.tip_mass.mass, m_lin=m_lin,
+    p = ArmParams(n=n, H=H, r0=r0, J_hub=J_hub, m_tip=case.tip_mass.mass, m_lin=m_lin,
                   m_uni=m_uni)
     return p, {"H": H, "m_lin": m_lin, "m_uni": m_uni, "J_root_region": J_root,
                "J_hub": J_hub, "root_region_mass": float(model.node_mass[inner].sum())}
@@ -388,6 +394,36 @@ def web_study():
     return recs
 
 
+def tri_study():
+    """The stiff triangular web (tritri, 3 arms) against the mapped distributed arm, as
+    folded and with the root region tied to the hub, free at 8 pi and under the spin ramp:
+    the same comparison as :func:`web_study` for the 3-arm star fold."""
+    recs = {"free": [], "ramp": [], "mapping": {}}
+    case = CASES / "tri_ramp_web.toml"
+    stiff = ["cable.youngs_modulus=180e12", "web.mesh_width=5.0"]
+    free = stiff + ["control.law='free'", "initial.omega=25.132741228718345", "time.end=0.8"]
+    ramp = stiff + ["time.end=4.0"]
+    for sets, key, wins in ((free, "free", {"after": (None, 0.8)}),
+                            (ramp, "ramp", {"ramp": (0.0, 2.0), "after": (2.0, 4.0)})):
+        curves = []
+        for variant in (None, "rigid_root"):
+            cs = load_case(case, sets)
+            mesh, model = solver.prepare(cs)[:2]
+            p, mp = web_params(cs, mesh, model)
+            recs["mapping"]["tritri, mesh_width 5"] = mp
+            label = f"tritri {key}, t = 5 m, {variant or 'as folded'}"
+            fe, an, rec = compare(label, cs, params=p, windows=wins, variant=variant)
+            recs[key].append(dict(rec, mesh_width=5.0, ties="frame",
+                                  variant=variant or "as folded"))
+            if fe is not None:
+                curves.append((fe, f"FE tritri, {variant or 'as folded'}", "-"))
+        curves.append((an, f"analytic, 3 arms (H = {p.H:.1f} m)", "k--"))
+        plot4(curves, IMG / f"validation_tri_{key}.png",
+              f"stiff triangular web (1000x Zylon, t = 5 m), {key}: FE vs consistent model")
+    dump("tri", recs)
+    return recs
+
+
 def figures():
     """The paper's Figs. 5-10 (Zylon unless stated), FE and analytic overlaid."""
     recs = {}
@@ -473,7 +509,8 @@ def tables():
                              f"{w} {ta:.2f}-{tb:.2f} s | {cells} |")
 
     for name, groups in (("tethers", ("mesh", "cfl", "light", "long", "ramp")),
-                         ("effects", None), ("web", ("free", "ramp"))):
+                         ("effects", None), ("web", ("free", "ramp")),
+                         ("tri", ("free", "ramp"))):
         path = OUT / f"{name}.json"
         if not path.is_file():
             continue
@@ -489,13 +526,13 @@ def tables():
     print("\n".join(lines))
 
 
-STUDIES = {"tethers": tether_study, "effects": effects_study, "web": web_study, "figs": figures,
-           "tables": tables}
+STUDIES = {"tethers": tether_study, "effects": effects_study, "web": web_study,
+           "tri": tri_study, "figs": figures, "tables": tables}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="tethers,effects,web,figs,tables",
+    ap.add_argument("--only", default="tethers,effects,web,tri,figs,tables",
                     help=f"comma-separated studies to run (default: all of {', '.join(STUDIES)})")
     args = ap.parse_args(argv)
     for name in args.only.split(","):
