@@ -20,7 +20,7 @@ from meshgen.mesh import Mesh
 LENGTH_PER_AREA_T = {"quad": 2.0, "tri": 2.0 * math.sqrt(3.0), "hex": 2.0 / math.sqrt(3.0)}
 #: mesh type of each topology (web outline + mesh: quadtri is a square web, triangular mesh)
 MESH_TYPE = {"quadquad": "quad", "quadtri": "tri", "quadhex": "hex",
-             "tritri": "tri", "trihex": "hex"}
+             "tritri": "tri", "trihex": "hex", "triquad": "quad"}
 
 
 def area_from_areal_density(topology: str, areal_density: float, mesh_width: float,
@@ -34,7 +34,7 @@ def area_from_areal_density(topology: str, areal_density: float, mesh_width: flo
     Parameters
     ----------
     topology : str
-        quadquad | quadtri | quadhex | tritri | trihex.
+        quadquad | quadtri | quadhex | tritri | trihex | triquad.
     areal_density : float [kg/m^2]
     mesh_width : float [m]
         Mesh spacing t (edge length for triangular and hexagonal meshes).

@@ -19,7 +19,7 @@ from spinweb_fe.errors import InputError
 
 REQUIRED = object()  # marker: the key has no default
 
-TOPOLOGIES = ("quadquad", "tritri", "trihex", "quadtri", "quadhex")
+TOPOLOGIES = ("quadquad", "tritri", "trihex", "triquad", "quadtri", "quadhex")
 WEB_FOLDS = ("star", "flat")
 TETHER_FOLDS = ("straight", "coiled")
 WRAPS = ("trailing", "leading")

@@ -217,7 +217,7 @@ def test_tritri_hole_sides_are_mesh_lines():
     assert len(holed.node_sets["hub_tied"]) == 30
 
 
-@pytest.mark.parametrize("topology", ["tritri", "trihex", "quadtri", "quadhex"])
+@pytest.mark.parametrize("topology", TOPOLOGIES)
 def test_build_mesh_star_from_a_case(topology):
     case = loads(f"[web]\ntopology = '{topology}'\nside = 20.0\nmesh_width = 1.0\n"
                  "[hub]\nradius = 1.0\n[time]\nend = 1.0\n")

@@ -32,7 +32,8 @@ def _assert_same_mesh(a, b):
         assert np.array_equal(a.elem_sets[k], b.elem_sets[k])
 
 
-@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml"])
+@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml",
+                                  "tri_ramp_web.toml"])
 def test_h5_round_trip(tmp_path, case):
     c = load(CASES / case)
     m = build_mesh(c)
@@ -100,7 +101,8 @@ def _main(monkeypatch):
     return cli.main
 
 
-@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml"])
+@pytest.mark.parametrize("case", ["paper_free_web.toml", "paper_free_arms.toml", "demo.toml",
+                                  "tri_ramp_web.toml"])
 def test_main_mesh(tmp_path, case, monkeypatch):
     main = _main(monkeypatch)
     assert main(["mesh", str(CASES / case), "-o", str(tmp_path / "tmp")]) == 0

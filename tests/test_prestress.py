@@ -235,3 +235,21 @@ def test_cli_main_exit_codes(tmp_path, capsys):
     assert main(["prestress", str(web), "--mesh-width", "80"]) == 2
     err = capsys.readouterr().err
     assert "tethers scene has no web to prestress" in err and "--mesh-width" in err
+
+
+def test_cli_spin_rate_of_a_run_from_rest(tmp_path, capsys):
+    """A run that starts at rest is analysed at its ramp's final rate; with no spin rate at
+    all the load would vanish, which is bad input (exit 2), not a verdict."""
+    from spinweb_fe.cli import main
+
+    ramp = tmp_path / "ramp.toml"
+    ramp.write_text(WEB_CASE + "[initial]\nomega = 0.0\n[control]\nlaw = 'spin_ramp'\n"
+                    "omega_max = 4.0\nramp_time = 1.0\n")
+    assert main(["prestress", str(ramp), "--mesh-width", "25"]) == 0
+    out = capsys.readouterr().out
+    assert "omega = 4 rad/s" in out and "|f| = 0 N" not in out
+    rest = tmp_path / "rest.toml"
+    rest.write_text(WEB_CASE + "[initial]\nomega = 0.0\n")
+    assert main(["prestress", str(rest), "--mesh-width", "25"]) == 2
+    assert "initial.omega" in capsys.readouterr().err
+    assert main(["prestress", str(rest), "--mesh-width", "25", "--omega", "2.0"]) == 0

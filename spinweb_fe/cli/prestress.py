@@ -2,7 +2,8 @@
 
 The web is built as for a run with the ``flat`` fold and one element per mesh segment
 (collinear subdivision nodes would only add trivial mechanisms), the hub-tied nodes are
-fixed, and the centrifugal load at ``initial.omega`` (or ``--omega``) is analysed with
+fixed, and the centrifugal load at ``initial.omega`` (or ``--omega``; for a run that starts
+at rest, the spin ramp's ``control.omega_max``) is analysed with
 :func:`spinweb_fe.prestress.analyse`. See docs/prestress.md.
 """
 
@@ -21,8 +22,9 @@ def add_parser(sub):
                         "a coarse mesh keeps the dense SVD fast; the cable mass per "
                         "length is scaled by W/t to keep the web's areal density")
     p.add_argument("--omega", type=float, default=None, metavar="RAD_S",
-                   help="spin rate [rad/s] (default: initial.omega); forces scale with "
-                        "omega^2, the verdict does not")
+                   help="spin rate [rad/s] (default: initial.omega, or control.omega_max "
+                        "for a run that starts at rest); forces scale with omega^2, the "
+                        "verdict does not")
     p.add_argument("--no-hub", action="store_true",
                    help="analyse the web without the hub cut-out (free web, statically "
                         "determinate supports)")
@@ -44,6 +46,21 @@ def _flat_mesh(case, no_hub):
         return flat_web(case.web, case.tip_mass.mass, 0.0)
     except MeshValueError as exc:
         raise InputError(case.source, f"web.{exc.param}", exc.reason) from None
+
+
+def _spin_rate(case, given):
+    """--omega, else initial.omega, else (a run that starts at rest) the spin ramp's
+    omega_max; InputError if the load would vanish."""
+    from spinweb_fe.errors import InputError
+
+    if given is not None:
+        omega = float(given)
+    else:
+        omega = case.initial.omega or (case.control.omega_max or 0.0)
+    if omega == 0.0:
+        raise InputError(case.source, "initial.omega", "the web starts at rest and no spin "
+                         "rate is prescribed: the centrifugal load vanishes; pass --omega")
+    return omega
 
 
 def run(args) -> int:
@@ -69,7 +86,7 @@ def run(args) -> int:
         raise InputError(case.source, "web.mesh_width",
                          f"{mesh.n_elems} bars are too many for the dense force method "
                          f"(limit {MAX_BARS}); use --mesh-width with a coarser t")
-    omega = case.initial.omega if args.omega is None else float(args.omega)
+    omega = _spin_rate(case, args.omega)
     rep = analyse(mesh, omega, line_density)
     w = case.web
     if rep.n_mechanisms == 0:
