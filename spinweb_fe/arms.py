@@ -51,9 +51,16 @@ def arm_probes(mesh):
         # outermost: largest gauge max_j P.u_j over the half-axes u_j (max(|x|, |y|) for
         # the square web): the web's outline edges that become the arm's edges
         reach = np.max(ref[:, :2] @ half_axes(mesh.arm_root_angle).T, axis=1)
+        # a web's spine keeps only the levels that reach its outline: levels of interior
+        # nodes alone (a mesh whose lines are not parallel to the half-axes) are slack
+        # concertina points that lift off the hub while the taut edges stay wound
+        edge = reach.max() - 1e-9 * max(1.0, reach.max()) if "boundary" in mesh.node_sets \
+            else -np.inf
         for k in range(n_arms):
             nodes = np.flatnonzero((arm == k) & (coord >= mesh.arm_root_coord - 1e-9))
             levels = np.unique(np.round(coord[nodes], 9))
+            levels = [lev for lev in levels
+                      if reach[nodes[np.abs(coord[nodes] - lev) < 1e-9]].max() >= edge]
             for j, lev in enumerate(levels):
                 group = nodes[np.abs(coord[nodes] - lev) < 1e-9]
                 outer = group[reach[group] >= reach[group].max() - 1e-9]

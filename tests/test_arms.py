@@ -8,7 +8,7 @@ import pytest
 from meshgen.build import build_mesh
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
-from spinweb_fe.arms import ArmTracker, deployed_length
+from spinweb_fe.arms import ArmTracker, arm_probes, deployed_length
 
 R0, H, M = 6.3, 50.0, 50
 
@@ -80,3 +80,24 @@ def test_free_arm_angle_is_continuous_past_pi():
     p = np.array(rows)
     _, phi, _ = tr.update(p, np.zeros_like(p), np.zeros(len(angles)))
     assert np.allclose(phi[:, 0], angles)
+
+
+@pytest.mark.parametrize("case", ["paper_free_web.toml", "tri_ramp_web.toml"])
+def test_web_spine_lies_on_the_outline(case):
+    """A web's spine probes are outline nodes (the arm's taut edges), one level per outline
+    arm coordinate from the coil root to the tip, no gap wider than an element: in the
+    triangular mesh the interior levels, slack concertina points, are left out."""
+    from pathlib import Path
+
+    from meshgen.fold import half_axes
+
+    mesh = build_mesh(case_mod.load(Path(__file__).resolve().parents[1] / "cases" / case))
+    probes, s_arm, s_lev, s_coord = arm_probes(mesh)
+    spine = probes[mesh.n_arms:]
+    gauge = np.max(mesh.node_ref[:, :2] @ half_axes(mesh.arm_root_angle).T, axis=1)
+    assert np.allclose(gauge[spine], gauge.max(), rtol=1e-9)
+    for k in range(mesh.n_arms):
+        lev = np.unique(s_coord[s_arm == k])
+        assert 0.0 <= lev[0] <= mesh.elem_rest_len.max() + 1e-9   # first level past the root
+        assert lev[-1] == pytest.approx(mesh.arm_length - mesh.arm_root_coord, rel=1e-9)
+        assert np.max(np.diff(lev)) <= mesh.elem_rest_len.max() + 1e-9
