@@ -50,6 +50,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out_json = ROOT / "benchmarks" / "results" / "paper_runs.json"
     summary = json.loads(out_json.read_text()) if out_json.exists() else {}
+    # the machine of the latest run; each case row carries its own date
     summary["machine"] = {"platform": platform.platform(), "processor": platform.processor(),
                           "python": platform.python_version(),
                           "date": time.strftime("%Y-%m-%d")}
@@ -73,7 +74,8 @@ def main(argv=None):
                "contact_dissipation_J": float(h["contact_dissipation"][-1]),
                "final_arm_length_m": [float(x) for x in h["arm_length"][-1]],
                "final_hub_omega": float(h["hub_omega"][-1]),
-               "max_tension_N": float(h["max_tension"].max())}
+               "max_tension_N": float(h["max_tension"].max()),
+               "date": time.strftime("%Y-%m-%d")}
         summary[name] = row
         four_panel([d / "results.h5"], ROOT / "docs" / "img" / f"paper_{name}.png",
                    labels=[name], title=case.title)
