@@ -39,7 +39,6 @@ from meshgen.mesh import POLYGON_COS, POLYGON_TAN, Mesh
 WRAP_SIGN = {"trailing": 1, "leading": -1}
 #: hub attachments of the star-folded web: the whole hole boundary, or the 4 axis nodes
 TIES = ("frame", "axes")
-_COS, _TAN = POLYGON_COS, POLYGON_TAN
 
 
 def _unit(angle: np.ndarray) -> np.ndarray:
@@ -57,7 +56,7 @@ def corner_angles(mesh: Mesh) -> np.ndarray:
     exactly regular: psi_k = psi_0 + 2 pi k / n."""
     tips = mesh.node_sets["tips"]
     n = len(tips)
-    if n not in _COS:
+    if n not in POLYGON_COS:
         raise MeshValueError("topology", f"the star fold needs a web with 3 or 4 corners, "
                              f"this one has {n}")
     p0 = mesh.node_ref[tips[0], :2]
@@ -109,24 +108,43 @@ def _classify(ref: np.ndarray, psi: np.ndarray, tol: float):
     return arm, cross.astype(np.int64), half.astype(np.int64), l, along.max(axis=1)
 
 
+def _tol(mesh: Mesh) -> float:
+    """Geometric tolerance [m] of the fold: 1e-6 of the shortest rest length."""
+    return 1e-6 * float(np.min(mesh.elem_rest_len))
+
+
 def _hole(mesh: Mesh, tol: float):
-    """(psi, c, gauge): corner angles, hole inradius c = the smallest gauge, node gauges."""
+    """(psi, c, parts): corner angles, hole inradius c = the smallest gauge, and the
+    :func:`_classify` arrays (arm, cross, half, l, gauge) of the reference positions."""
     psi = corner_angles(mesh)
-    gauge = _classify(mesh.node_ref, psi, tol)[4]
-    return psi, float(gauge.min()), gauge
+    parts = _classify(mesh.node_ref, psi, tol)
+    return psi, float(parts[4].min()), parts
+
+
+def _frame_hole(mesh: Mesh) -> float | None:
+    """Hole inradius c [m] if the hub-tied nodes are exactly the hole boundary (more than
+    one per arm: tethers, tied by one root node each, never are), else None."""
+    tied = np.sort(np.asarray(mesh.node_sets.get("hub_tied", ()), np.int64))
+    n = mesh.n_arms
+    if n in POLYGON_COS and len(mesh.node_sets["tips"]) == n and len(tied) > n and mesh.n_elems:
+        tol = _tol(mesh)
+        _, c, parts = _hole(mesh, tol)
+        if np.array_equal(tied, np.flatnonzero(np.abs(parts[4] - c) <= tol)):
+            return c
+    return None
 
 
 def frame_lead_in(c: float, r0: float, n: int = 4) -> float:
     """Length d0 = c / cos(pi/n) - r0 [m] of the radial spoke from a frame corner in to
     the rim, where the coil of a ``frame``-tied arm starts (c sqrt(2) - r0 for the
     square web, 2c - r0 for the triangular web)."""
-    return c / _COS[n] - r0
+    return c / POLYGON_COS[n] - r0
 
 
 def corner_coord(c: float, n: int = 4) -> float:
     """Arm coordinate l_c = c tan(pi/n) [m] of a frame corner: where the arm leaves the
     frame (c for the square web, c sqrt(3) for the triangular web)."""
-    return c * _TAN[n]
+    return c * POLYGON_TAN[n]
 
 
 def tie_mode(mesh: Mesh) -> str:
@@ -136,13 +154,9 @@ def tie_mode(mesh: Mesh) -> str:
     than one per arm: tethers, tied by one root node each, are never ``frame``),
     ``axes`` if they are 4 nodes; MeshValueError otherwise (no arm data).
     """
-    tied = np.sort(np.asarray(mesh.node_sets.get("hub_tied", ()), np.int64))
-    if mesh.n_arms in _COS and len(tied) > mesh.n_arms and mesh.n_elems:
-        tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-        _, c, gauge = _hole(mesh, tol)
-        if np.array_equal(tied, np.flatnonzero(np.abs(gauge - c) <= tol)):
-            return "frame"
-    if mesh.n_arms == 4 and len(tied) == 4:
+    if _frame_hole(mesh) is not None:
+        return "frame"
+    if mesh.n_arms == 4 and len(mesh.node_sets.get("hub_tied", ())) == 4:
         return "axes"
     raise MeshValueError("pattern", "no star-fold arm data on this mesh (call assign_arms "
                          "first on a web with an outline-shaped hole)")
@@ -184,14 +198,13 @@ def assign_arms(mesh: Mesh, hub_radius: float, ties: str = "frame") -> Mesh:
         raise MeshValueError("ties", f"unknown hub ties '{ties}' (valid: {', '.join(TIES)})")
     if hub_radius <= 0:
         raise MeshValueError("hub_radius", f"must be > 0, got {hub_radius:g} m")
-    tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-    psi, c, gauge = _hole(mesh, tol)
+    tol = _tol(mesh)
+    psi, c, (arm, cross, _, l, gauge) = _hole(mesh, tol)
     n = len(psi)
     if c < hub_radius - tol:
         raise MeshValueError("hub_cutout", f"the web's cut-out inradius {c:g} m is smaller "
                              f"than the hub radius {hub_radius:g} m: the tied nodes would lie "
                              "inside the hub (leave web.hub_cutout unset or make it >= r0)")
-    arm, cross, _, l, _ = _classify(mesh.node_ref, psi, tol)
     l_c = corner_coord(c, n)
     if ties == "axes":
         if n != 4:
@@ -277,12 +290,10 @@ def star_fold(mesh: Mesh) -> Mesh:
     """
     ties = tie_mode(mesh)
     ref = mesh.node_ref
-    tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-    psi, c, _ = _hole(mesh, tol)
+    psi, c, (arm, cross, half, l, _) = _hole(mesh, _tol(mesh))
     n = len(psi)
-    arm, cross, half, l, _ = _classify(ref, psi, tol)
     r0 = mesh.hub_radius
-    u = half_axes(psi)
+    u, u_psi = half_axes(psi), _unit(psi)
     xy = np.zeros((mesh.n_nodes, 2))
     is_cross = cross >= 0
     xy[is_cross] = c * u[cross[is_cross]]
@@ -290,10 +301,9 @@ def star_fold(mesh: Mesh) -> Mesh:
     leg = (arm >= 0) & (l < l_c)
     k, j = arm[leg], half[leg]
     if ties == "frame":
-        corner = (c / _COS[n]) * _unit(psi)
-        e = (corner[k] - c * u[j]) / l_c
+        r_c = c / POLYGON_COS[n]
+        e = (r_c * u_psi[k] - c * u[j]) / l_c
         xy[leg] = c * u[j] + l[leg, None] * e
-        r_c = c / _COS[n]
     else:
         sigma = np.where(j == k, 1.0, -1.0)         # from beta_k ccw, from beta_(k+1) cw
         beta = np.where(j == k, k, k + 1) * (math.pi / 2)
@@ -301,7 +311,7 @@ def star_fold(mesh: Mesh) -> Mesh:
         r_c = r0
     out = (arm >= 0) & ~leg
     r = r_c + l[out] - l_c
-    xy[out] = r[:, None] * _unit(psi)[arm[out]]
+    xy[out] = r[:, None] * u_psi[arm[out]]
     xy[mesh.node_sets["hub_tied"]] = ref[mesh.node_sets["hub_tied"], :2]
     pos = np.column_stack([xy, np.zeros(mesh.n_nodes)])
     return mesh.replace(node_pos=pos)
@@ -310,14 +320,8 @@ def star_fold(mesh: Mesh) -> Mesh:
 def _lead_in(mesh: Mesh) -> float:
     """Radial lead-in of the coil: d0 = c / cos(pi/n) - r0 for a ``frame``-tied web,
     else 0."""
-    try:
-        if tie_mode(mesh) == "frame":
-            tol = 1e-6 * float(np.min(mesh.elem_rest_len))
-            _, c, _ = _hole(mesh, tol)
-            return mesh.arm_root_coord - corner_coord(c, mesh.n_arms)
-    except MeshValueError:
-        pass
-    return 0.0
+    c = _frame_hole(mesh)
+    return 0.0 if c is None else mesh.arm_root_coord - corner_coord(c, mesh.n_arms)
 
 
 def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Mesh:

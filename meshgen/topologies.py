@@ -339,13 +339,17 @@ def _subdivide(pts, edges, k):
     return np.vstack([pts, mid]), elems, np.repeat(np.arange(len(edges)), k)
 
 
+def _web_inradius(topology: str, side: float) -> float:
+    """Inradius [m] of the web outline: S / (2 sqrt 3) for the triangle (h/3), S/2 for the
+    square."""
+    return side / (2 * _SQ3) if topology.startswith("tri") else side / 2
+
+
 def outline_hole(topology: str, side: float, inradius: float) -> np.ndarray:
     """(n, 2) corners [m] of a hole shaped like the web outline, of inradius ``inradius``
     (the hub frame of the star fold: sides parallel to the web's sides)."""
-    shape = "tri" if topology.startswith("tri") else "quad"
-    corners = web_outline(shape, side)
-    r_in = side / (2 * _SQ3) if shape == "tri" else side / 2
-    return corners * (inradius / r_in)
+    corners = web_outline("tri" if topology.startswith("tri") else "quad", side)
+    return corners * (inradius / _web_inradius(topology, side))
 
 
 def outline_cutout(topology: str, side: float, mesh_width: float, hub_cutout: float) -> float:
@@ -361,7 +365,7 @@ def outline_cutout(topology: str, side: float, mesh_width: float, hub_cutout: fl
                              f"got {hub_cutout:g} m")
     n = side / mesh_width
     if topology == "tritri" and abs(n - round(n)) <= 1e-9 * n:
-        top = side / (2 * _SQ3)                       # h/3: inradius of the web
+        top = _web_inradius(topology, side)           # h/3
         step = mesh_width * _SQ3 / 2
         i = math.floor((top - hub_cutout) / step + 1e-9)
         return top - i * step
@@ -425,8 +429,7 @@ def flat_other(topology: str, side: float, mesh_width: float, elements_per_segme
     lat, lat_edges, corners = _lattice_for(topology, float(side), t)
     hole_xy = None
     if hole == "outline" and hub_cutout:
-        r_in = side / (2 * _SQ3) if topology.startswith("tri") else side / 2
-        if hub_cutout > r_in - t:
+        if hub_cutout > _web_inradius(topology, side) - t:
             raise MeshValueError("hub_cutout", f"a hole of inradius {hub_cutout:g} m leaves "
                                  f"less than one mesh width ({t:g} m) of web beside it")
         hole_xy = outline_hole(topology, side, hub_cutout)
