@@ -58,11 +58,10 @@ def arm_probes(mesh):
             else -np.inf
         for k in range(n_arms):
             nodes = np.flatnonzero((arm == k) & (coord >= mesh.arm_root_coord - 1e-9))
-            levels = np.unique(np.round(coord[nodes], 9))
-            levels = [lev for lev in levels
-                      if reach[nodes[np.abs(coord[nodes] - lev) < 1e-9]].max() >= edge]
-            for j, lev in enumerate(levels):
-                group = nodes[np.abs(coord[nodes] - lev) < 1e-9]
+            groups = [(lev, nodes[np.abs(coord[nodes] - lev) < 1e-9])
+                      for lev in np.unique(np.round(coord[nodes], 9))]
+            groups = [(lev, g) for lev, g in groups if reach[g].max() >= edge]
+            for j, (lev, group) in enumerate(groups):
                 outer = group[reach[group] >= reach[group].max() - 1e-9]
                 s_idx += list(outer)
                 s_arm += [k] * len(outer)

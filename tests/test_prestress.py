@@ -253,3 +253,5 @@ def test_cli_spin_rate_of_a_run_from_rest(tmp_path, capsys):
     assert main(["prestress", str(rest), "--mesh-width", "25"]) == 2
     assert "initial.omega" in capsys.readouterr().err
     assert main(["prestress", str(rest), "--mesh-width", "25", "--omega", "2.0"]) == 0
+    assert main(["prestress", str(rest), "--mesh-width", "25", "--omega", "0"]) == 2
+    assert "--omega" in capsys.readouterr().err

@@ -54,9 +54,10 @@ def _spin_rate(case, given):
     from spinweb_fe.errors import InputError
 
     if given is not None:
-        omega = float(given)
-    else:
-        omega = case.initial.omega or (case.control.omega_max or 0.0)
+        if float(given) == 0.0:
+            raise InputError("--omega", "", "must be nonzero: the centrifugal load vanishes")
+        return float(given)
+    omega = case.initial.omega or (case.control.omega_max or 0.0)
     if omega == 0.0:
         raise InputError(case.source, "initial.omega", "the web starts at rest and no spin "
                          "rate is prescribed: the centrifugal load vanishes; pass --omega")
