@@ -8,13 +8,13 @@ corners, every node at 2 pi rad/s, unstretched), one thread, the same dt for eve
 - ``floor``: ``reference_advance`` below, a numba loop with the production element math
   (tension-only, 1/L0 stored, branch-free max, error_model='numpy') and the node update
   v += dt f/m, x += dt v, f = 0, and nothing else (no hub, contact, control, damping, records).
-- ``bare``: the production loop (``solver.simulate``) on the same scene with every feature
+- ``bare``: the production loop (``run.loop.simulate``) on the same scene with every feature
   absent: no tied nodes, no contact, law 'free', no damping, one history row per 256 x 1000
   steps (i.e. almost never), no frames.
 - one feature switched on at a time: hub ties (the nodes within 3 m of the centre tied to a
   hub), contact (every free node checked against a hub of radius 0.2 m; no node is inside),
   control (torque feedback law), damping (5 % of critical), history every step, frames every
-  100 steps through ``on_frame`` (positions, velocities and tensions copied, as the writer
+  100 steps to a recorder (positions, velocities and tensions copied, as the writer
   gets them).
 
 Production variants are timed by wall time of ``simulate`` less its compile/cache-load part
@@ -37,9 +37,11 @@ from numba import njit
 from throughput import RHO, A, E, load_average, machine
 
 from meshgen.flat import flat_quadquad
-from spinweb_fe.control import LAWS, Control
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import simulate
+from spinweb_fe.fe.control import free, make_control
+from spinweb_fe.fe.model import build_model, choose_dt, make_hub
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.record.recorders import Recorder
+from spinweb_fe.run.loop import Schedule, simulate
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -96,16 +98,14 @@ def scene(mesh_width, variant):
     if variant == "hub ties":
         pos = mesh.node_pos
         tied = np.flatnonzero(np.hypot(pos[:, 0], pos[:, 1]) < 3.0).astype(np.int64)
-        inv = model.node_inv_mass.copy()
+        inv = model.nodes.inv_mass.copy()
         inv[tied] = 0.0
-        ref = np.ascontiguousarray(pos[tied], dtype=np.float64)
-        j_eff = 1.0 + float(np.sum(model.node_mass[tied] * (ref[:, 0] ** 2 + ref[:, 1] ** 2)))
-        model = dataclasses.replace(model, tied_idx=tied, tied_ref=ref, node_inv_mass=inv,
-                                    j_eff=j_eff)
+        hub = make_hub(model.hub.radius, 0.0, 1.0, model.nodes.mass, tied, pos[tied])
+        model = dataclasses.replace(model, nodes=model.nodes._replace(inv_mass=inv), hub=hub)
     if variant == "control":
-        control = Control(LAWS["torque_feedback"], np.array([10.0, 2 * math.pi, 0.0]))
+        control = make_control("torque_feedback", {"M0": 10.0, "omega0": 2 * math.pi})
     else:
-        control = Control(LAWS["free"], np.zeros(1))
+        control = free()
     state = initial_state(model, 2 * math.pi, "all")
     return model, control, state
 
@@ -120,25 +120,29 @@ def run_variant(mesh_width, variant, dt, steps):
     history_dt = dt if every_step else dt * 1000 * 256  # one row per 256 000 steps
     frame_dt = 100 * dt if variant.startswith("frames") else 0.0
     end = steps * dt
-    nframes = [0]
-
-    def on_frame(t, pos, vel, tension):
-        nframes[0] += 1
-
+    frames = FrameCount()
     t0 = time.perf_counter()
-    res = simulate(model, control, state, dt, end, history_dt, frame_dt=frame_dt,
-                   on_frame=on_frame if frame_dt else None, threads=1, energy_limit=math.inf)
+    res = simulate(model, control, state, dt, Schedule(end, history_dt, frame_dt), [frames],
+                   threads=1, energy_limit=math.inf)
     wall = time.perf_counter() - t0
     return {"wall_s": wall - res.compile_s, "loop_s": res.loop_s, "steps": res.steps,
-            "elements": model.n_elems, "frames": nframes[0]}
+            "elements": model.n_elems, "frames": frames.count}
+
+
+class FrameCount(Recorder):
+    """Takes the frames as the result writer gets them (copies made by the loop)."""
+
+    count = 0
+
+    def frame(self, frame):
+        self.count += 1
 
 
 def run_floor(mesh_width, dt, steps):
     model, _, state = scene(mesh_width, "bare")
-    force = np.zeros_like(state.pos)
-    inv_rest = 1.0 / model.elem_rest_len
-    args = (state.pos, state.vel, force, model.node_inv_mass, model.elem_nodes, inv_rest,
-            model.elem_ea, dt)
+    force = np.zeros_like(state.node_pos)
+    args = (state.node_pos, state.node_vel, force, model.nodes.inv_mass, model.elements.nodes,
+            model.elements.inv_rest, model.elements.ea, dt)
     reference_advance(*args, 1)  # compile / cache load
     t0 = time.perf_counter()
     reference_advance(*args, steps)

@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe import case as case_mod
-from spinweb_fe.plot import four_panel
-from spinweb_fe.solver import energy_balance, run_case
+from spinweb_fe.post.plot import four_panel
+from spinweb_fe.record.energy import energy_balance
+from spinweb_fe.run.driver import run_case
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT = ["paper_free_arms", "paper_free_web", "paper_feedback_web", "paper_ramp_web",
@@ -62,8 +63,8 @@ def main(argv=None):
         wall = time.perf_counter() - t0
         h = res.history
         e_err, k_err = errors(h)
-        m = res.state.pos.shape[0]
-        from meshgen.build import build_mesh
+        m = res.state.node_pos.shape[0]
+        from spinweb_fe.case.scene import build_mesh
 
         n_el = build_mesh(case).n_elems
         row = {"title": case.title, "end_s": case.time.end, "steps": res.steps, "dt": res.dt,

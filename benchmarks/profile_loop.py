@@ -39,7 +39,8 @@ from feature_cost import reference_nodes as node_pass
 from numba import njit, prange
 from throughput import load_average, machine, spinning_web
 
-from spinweb_fe import kernels
+from spinweb_fe.fe import step as kernels
+from spinweb_fe.fe.control import free
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -108,31 +109,28 @@ def loop_threads(model, state, nt, steps=300):
     numba.set_num_threads(nt)
     m, n = model.n_elems, model.n_nodes
     dt = 0.9 * model.dt_critical
-    inv_rest = 1.0 / model.elem_rest_len
+    inv_rest = 1.0 / model.elements.rest_len
 
     def adv(k):
-        pos, vel, hub = state.pos.copy(), state.vel.copy(), state.hub.copy()
-        rec = np.zeros((2, len(kernels.REC_COLUMNS)))
+        st = state.copy()
         pp = np.zeros((2, 0, 3))
+        rec = kernels.Recording(10**9, np.zeros(0, np.int64),
+                                np.zeros((2, len(kernels.REC_COLUMNS))), pp, pp.copy())
         t0 = time.perf_counter()
-        kernels.advance(pos, vel, hub, np.zeros((nt, n, 3)), np.zeros(m), model.node_inv_mass,
-                        model.node_mass, model.elem_nodes, model.elem_rest_len, model.elem_ea,
-                        model.elem_cdamp, model.tied_idx, model.tied_ref, model.node_contact,
-                        model.hub_radius, model.hub_friction, model.j_eff, 0,
-                        np.zeros(1), dt, k, 10**9, np.zeros(0, np.int64), rec, pp, pp.copy())
+        kernels.advance(model.elements, model.nodes, model.hub, free().kernel, st,
+                        np.zeros((nt, n, 3)), rec, dt, k)
         return time.perf_counter() - t0
 
     def kern(k):
-        pos, vel = state.pos.copy(), state.vel.copy()
+        pos, vel = state.node_pos.copy(), state.node_vel.copy()
         forces = np.zeros((nt, n, 3))
         eb, nb = kernels.split(m, nt), kernels.split(n, nt)
         eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
         t0 = time.perf_counter()
         for _ in range(k):
-            kernels.accumulate_threads(pos, vel, model.elem_nodes, inv_rest, model.elem_ea,
-                                       model.elem_cdamp, False, forces, eb, False, eo)
-            kernels.integrate_threads(pos, vel, forces, model.node_inv_mass, model.node_mass,
-                                      model.node_contact, 0.0, 1.0, 0.0, 0.0, dt, nb, False, no)
+            kernels.accumulate_threads(model.elements, pos, vel, forces, eb, False, eo)
+            kernels.integrate_threads(model.nodes, model.hub, pos, vel, forces, 0.0, 0.0, dt, nb,
+                                      False, no)
         return time.perf_counter() - t0
 
     adv(2)
@@ -170,12 +168,13 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args(argv)
     model, _, state = spinning_web(args.mesh_width)
-    pos, vel = state.pos, state.vel
+    pos, vel = state.node_pos, state.node_vel
     # a slightly stretched web, so that the tension-only max is taut for part of the elements
     pos *= 1.0 + 1e-4 * np.sin(np.arange(pos.shape[0]))[:, None]
-    en = model.elem_nodes
-    inv_rest = 1.0 / model.elem_rest_len
-    ea, cd = model.elem_ea, model.elem_cdamp
+    en = model.elements.nodes
+    inv_rest = 1.0 / model.elements.rest_len
+    ea, cd = model.elements.ea, model.elements.cdamp
+    damped = model.elements._replace(cdamp=cd + 1.0, damped=True)
     force = np.zeros_like(pos)
     m = model.n_elems
     n = model.n_nodes
@@ -191,17 +190,16 @@ def main(argv=None):
         "scatter": lambda: scatter_only(en, inv_rest, force),
         "element pass (reference)": lambda: element_pass(pos, en, inv_rest, ea, force),
         "element pass (production)": lambda: kernels.accumulate_elements(
-            pos, vel, en, inv_rest, ea, cd, False, force, 0, m, False, no_t),
+            model.elements, pos, vel, force, 0, m, False, no_t),
         "element pass (production, record)": lambda: kernels.accumulate_elements(
-            pos, vel, en, inv_rest, ea, cd, False, force, 0, m, True, no_t),
+            model.elements, pos, vel, force, 0, m, True, no_t),
         "element pass (production, damped)": lambda: kernels.accumulate_elements(
-            pos, vel, en, inv_rest, ea, cd + 1.0, True, force, 0, m, False, no_t),
+            damped, pos, vel, force, 0, m, False, no_t),
         "element pass, random element order": lambda: element_pass(pos, en_rand, inv_rest, ea,
                                                                     force),
-        "node pass (reference)": lambda: node_pass(pos, vel, force, model.node_inv_mass, dt),
+        "node pass (reference)": lambda: node_pass(pos, vel, force, model.nodes.inv_mass, dt),
         "node pass (production)": lambda: kernels.integrate_nodes(
-            pos, vel, force, model.node_inv_mass, model.node_mass, model.node_contact, 0.0, 0.0,
-            1.0, 0.0, 0.0, dt, 0, n, False, out4),
+            model.nodes, model.hub, pos, vel, force, 0.0, 0.0, dt, 0, n, False, out4),
     }
     rows = {}
     for _ in range(args.rounds):  # rounds interleave the parts; the fastest round is kept
@@ -220,12 +218,11 @@ def main(argv=None):
         eb, nb = kernels.split(m, nt), kernels.split(n, nt)
         eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
         def elem_pass(forces=forces, eb=eb, eo=eo):
-            kernels.accumulate_threads(pos, vel, en, inv_rest, ea, cd, False, forces, eb, False,
-                                       eo)
+            kernels.accumulate_threads(model.elements, pos, vel, forces, eb, False, eo)
 
         def node_pass_t(forces=forces, nb=nb, no=no):
-            kernels.integrate_threads(pos, vel, forces, model.node_inv_mass, model.node_mass,
-                                      model.node_contact, 0.0, 1.0, 0.0, 0.0, dt, nb, False, no)
+            kernels.integrate_threads(model.nodes, model.hub, pos, vel, forces, 0.0, 0.0, dt, nb,
+                                      False, no)
 
         e_s = min(best_of(elem_pass, args.repeat) for _ in range(args.rounds))
         n_s = min(best_of(node_pass_t, args.repeat) for _ in range(args.rounds))
@@ -245,7 +242,7 @@ def main(argv=None):
     vec = {}
     for name, fn, a in (
             ("accumulate_elements", kernels.accumulate_elements,
-             (pos, vel, en, inv_rest, ea, cd, False, force, 0, m, False, no_t)),
+             (model.elements, pos, vel, force, 0, m, False, no_t)),
             ("element_pass", element_pass, (pos, en, inv_rest, ea, force)),
             ("gather_math", gather_math, (pos, en, inv_rest, ea, tmp))):
         vec[name] = dict(zip(("zmm_sqrt", "zmm_div", "ymm_sqrt", "ymm_div"),

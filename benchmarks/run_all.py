@@ -72,7 +72,7 @@ def throughput(wait):
 
 def ramp(wait):
     from spinweb_fe import case as case_mod
-    from spinweb_fe.solver import run_case
+    from spinweb_fe.run.driver import run_case
 
     rows = []
     for eps, nt in ((1, 2), (1, 1), (2, 2), (2, 1)):
@@ -83,7 +83,7 @@ def ramp(wait):
         res = run_case(case, ROOT / "out" / "bench" / f"ramp_{eps}_{nt}", progress=False,
                        threads=nt)
         wall = time.perf_counter() - t0
-        n_el = int(res.state.pos.shape[0])
+        n_el = int(res.state.node_pos.shape[0])
         rows.append({"elements_per_segment": eps, "threads": nt, "wall_s": wall, "loop_s": res.loop_s,
                      "compile_s": res.compile_s, "steps": res.steps, "dt": res.dt,
                      "frames": res.frames, "nodes": n_el, "load_1min_at_start": load,

@@ -20,8 +20,8 @@ from pathlib import Path
 
 from throughput import machine, measure, model_bytes, spinning_web
 
-from spinweb_fe.model import choose_dt
-from spinweb_fe.solver import simulate
+from spinweb_fe.fe.model import choose_dt
+from spinweb_fe.run.loop import Schedule, simulate
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -31,7 +31,8 @@ def traced_bytes(width, steps=10):
     tracemalloc.start()
     model, control, state = spinning_web(width)
     dt = choose_dt(model, 0.9, history_dt=1e-3)
-    simulate(model, control, state, dt, steps * dt, 1e-3, threads=1, energy_limit=math.inf)
+    simulate(model, control, state, dt, Schedule(steps * dt, 1e-3), threads=1,
+             energy_limit=math.inf)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     return peak, model.n_elems, model_bytes(model)

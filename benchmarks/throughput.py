@@ -32,9 +32,11 @@ import numpy as np
 
 from meshgen.flat import flat_quadquad
 from spinweb_fe import case as case_mod
-from spinweb_fe.control import LAWS, Control
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import prepare, simulate
+from spinweb_fe.fe.control import free
+from spinweb_fe.fe.model import build_model, choose_dt
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.case.scene import prepare
+from spinweb_fe.run.loop import Schedule, simulate
 
 E, RHO, A = 180e9, 1540.0, 1.025e-5
 
@@ -43,7 +45,7 @@ def spinning_web(mesh_width, side=100.0):
     mesh = flat_quadquad(side, mesh_width, 1, 10.0, 0.0)
     model = build_model(mesh, E, RHO, A, hub_radius=0.0, hub_inertia=1.0, contact=False)
     state = initial_state(model, 2 * math.pi, "all")
-    return model, Control(LAWS["free"], np.zeros(1)), state
+    return model, free(), state
 
 
 def full_feature(mesh_width, side=100.0):
@@ -121,10 +123,10 @@ def measure(problem, mesh_width, end, threads, cfl=0.9, history_dt=1e-3, repeat=
     dt = choose_dt(model, cfl, history_dt=history_dt)
     best, loops, compiles, loads = None, [], [], []
     for _ in range(max(1, repeat)):
-        state = type(state0)(state0.pos.copy(), state0.vel.copy(), state0.hub.copy())
+        state = state0.copy()
         loads.append(load_average())
         t0 = time.perf_counter()
-        r = simulate(model, control, state, dt, end, history_dt, threads=threads,
+        r = simulate(model, control, state, dt, Schedule(end, history_dt), threads=threads,
                      energy_limit=math.inf)
         w = time.perf_counter() - t0
         loops.append(r.loop_s)
@@ -148,10 +150,9 @@ def measure(problem, mesh_width, end, threads, cfl=0.9, history_dt=1e-3, repeat=
 
 def model_bytes(model):
     """Bytes of the arrays the step loop touches (model + state + workspace)."""
-    n, m = model.n_nodes, model.n_elems
-    arrays = (model.node_mass, model.node_inv_mass, model.elem_nodes, model.elem_rest_len,
-              model.elem_ea, model.elem_cdamp, model.node_contact)
-    return sum(a.nbytes for a in arrays) + n * 3 * 8 * 3 + m * 8  # pos, vel, force; 1/L0
+    n = model.n_nodes
+    arrays = (*model.nodes, *model.elements[:-1])
+    return sum(a.nbytes for a in arrays) + n * 3 * 8 * 3  # + pos, vel, force
 
 
 def main(argv=None):

@@ -7,7 +7,8 @@ One command runs the whole study (about 10 minutes of wall time on one core)::
 It writes ``benchmarks/results/validation/*.json`` (error tables, timings), overlaid
 four-panel plots ``benchmarks/results/validation/*.png`` and the figures quoted by
 docs/validation.md (``docs/img/validation_*.png``, ``docs/img/fig5.png`` ... ``fig10.png``).
-Method, mapping and discussion: docs/validation.md.
+The mappings and error norms are spinweb_fe.analytic.compare's; method and discussion:
+docs/validation.md.
 """
 
 from __future__ import annotations
@@ -19,219 +20,28 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe import analytic, arms, solver
 from spinweb_fe import case as case_mod
-from spinweb_fe.analytic_models import HALF_PI, ArmParams
+from spinweb_fe.analytic.compare import (QUANTITIES, analytic_twin, error_table, fe_run,
+                                         first_pivot, web_params)
+from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import RunError
+from spinweb_fe.post.plot import plot_histories
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = ROOT / "cases"
 OUT = ROOT / "benchmarks" / "results" / "validation"
 IMG = ROOT / "docs" / "img"
-QUANTITIES = (("arm_length", "L", "m"), ("arm_angle", "phi", "rad"),
-              ("hub_omega", "omega_centre", "rad/s"), ("tip_omega", "omega_tip", "rad/s"))
 
-
-def coil_tol(case):
-    """Relative radius tolerance for the arm measure's "on the hub" test.
-
-    A coil of straight elements of rest length l_e whose nodes start on the rim has chords
-    shorter than the rest length; under spin it lifts until the chords are taut, by
-    r0 (theta/2 / sin(theta/2) - 1) ~ r0 theta^2/24 with theta = l_e/r0 (1.05e-3 r0 for 1 m
-    elements on the 6.3 m hub). spinweb_fe.arms uses a fixed 1e-3, which the lifted coil of
-    50-element tethers already exceeds (docs/validation.md): use twice the lift.
-    """
-    if case.scene == "tethers":
-        le = case.tethers.length / case.tethers.elements
-    else:
-        le = case.web.mesh_width / case.web.elements_per_segment
-    return max(arms.CONTACT_TOL, (le / case.hub.radius) ** 2 / 12.0)
-
-
-# ----------------------------------------------------------------------------- runs
 
 def load_case(path, sets=()):
     return case_mod.load(path, sets=list(sets))
 
 
-def rigid_root(case, mesh, model):
-    """Variant of a web model whose root region and central cross are tied to the hub.
-
-    The star fold gathers the central cross (a slack chain of a - c metres per half) and the
-    root legs (slack r0 (1 - pi/4)) between the hub ties and the arm roots, so the hub can turn
-    tens of metres relative to the web before any torque passes (docs/validation.md). Tying
-    every node with arm coordinate < c (and the cross) to the hub at its folded position makes
-    the FE root what the analytical model assumes: the free arm starts at the rim point M_k.
-    """
-    import dataclasses
-
-    from spinweb_fe.model import build_model
-
-    arm, l = mesh.node_arm, mesh.node_arm_coord
-    inner = np.flatnonzero(~((arm >= 0) & (l >= mesh.arm_root_coord - 1e-9)))
-    sets = dict(mesh.node_sets)
-    sets["hub_tied"] = inner.astype(np.int64)
-    mesh2 = dataclasses.replace(mesh, node_sets=sets)
-    cab, hub = case.cable, case.hub
-    model2 = build_model(mesh2, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
-                         hub_radius=hub.radius, hub_inertia=hub.inertia, hub_friction=hub.friction)
-    return mesh2, model2
-
-
-def fe_run(case, contact_tol=None, variant=None):
-    """Run the FE model of a validated case; returns (history, info, mesh, model).
-
-    variant='rigid_root' ties the web's root region to the hub (:func:`rigid_root`).
-    """
-    from spinweb_fe.model import choose_dt, initial_state
-
-    mesh, model, control, state, dt = solver.prepare(case)
-    if variant == "rigid_root":
-        mesh, model = rigid_root(case, mesh, model)
-        state = initial_state(model, case.initial.omega, case.initial.spin)
-        dt = choose_dt(model, case.time.cfl, case.time.dt, case.output.history_dt)
-    old = arms.CONTACT_TOL
-    tol = coil_tol(case) if contact_tol is None else contact_tol
-    arms.CONTACT_TOL = tol
-    try:
-        t0 = time.perf_counter()
-        res = solver.simulate(model, control, state, dt, case.time.end, case.output.history_dt)
-        wall = time.perf_counter() - t0
-    finally:
-        arms.CONTACT_TOL = old
-    h = res.history
-    bal = solver.energy_balance(h)
-    e_scale = max(float(np.max(h["kinetic_energy"])), 1e-30)
-    info = {"elements": int(model.n_elems), "nodes": int(model.n_nodes), "dt": dt,
-            "energy_balance_error": float(np.max(np.abs(bal - bal[0]))) / e_scale,
-            "contact_tol": tol,
-            "steps": int(res.steps), "wall_s": wall, "loop_s": res.loop_s,
-            "element_updates_per_s": model.n_elems * res.steps / max(res.loop_s, 1e-9)}
-    return res.history, info, mesh, model
-
-
-def web_params(case, mesh, model, root="hub"):
-    """Map the FE star-folded web to the analytical distributed arm (docs/validation.md).
-
-    The free arm is the part beyond the gathered root region: H = arm_length - arm_root_coord
-    (42.5 m for the paper web), its roots at the merge points M_k on the rim. Its mass is
-    taken from the FE lumped masses: per arm, the cable mass of the nodes with arm coordinate
-    >= l0 (tip node: cable only, the corner mass is m_tip) split into the Eq. 7 profile
-    (m_lin = rho_A cot(pi/n) H^2: rho_A H^2 for the square web, rho_A H^2 / sqrt(3) for the
-    triangular web) and the rest as a uniform tether (the edge lines' excess). The root
-    region and the half-axes (nodes with l < l0 or no arm), gathered between the ties and
-    the rim, turn with the hub: with root='hub' their inertia sum m r^2 (folded positions) is
-    added to J_hub; root='drop' leaves it out (J_hub alone) to show its weight.
-    """
-    from meshgen.mesh import POLYGON_TAN
-    from meshgen.topologies import cable_length_per_area
-
-    c, a, r0 = mesh.arm_root_coord, mesh.arm_length, case.hub.radius
-    H = a - c
-    n = mesh.n_arms
-    m = model.node_mass - mesh.node_point_mass
-    arm, l = mesh.node_arm, mesh.node_arm_coord
-    free = (arm == 0) & (l >= c - 1e-9)
-    m_free = float(m[free].sum())
-    rho_a = case.web.areal_density
-    if rho_a is None:
-        rho_a = (case.cable.density * case.cable.area
-                 * cable_length_per_area(case.web.topology, case.web.mesh_width))
-    m_lin = min(rho_a * H * H / POLYGON_TAN[n], m_free)
-    m_uni = m_free - m_lin
-    inner = ~((arm >= 0) & (l >= c - 1e-9))
-    r2 = mesh.node_pos[:, 0] ** 2 + mesh.node_pos[:, 1] ** 2
-    J_root = float(np.sum(model.node_mass[inner] * r2[inner]))
-    J_hub = case.hub.inertia + (J_root if root == "hub" else 0.0)
-    p = ArmParams(n=n, H=H, r0=r0, J_hub=J_hub, m_tip=case.tip_mass.mass, m_lin=m_lin,
-                  m_uni=m_uni)
-    return p, {"H": H, "m_lin": m_lin, "m_uni": m_uni, "J_root_region": J_root,
-               "J_hub": J_hub, "root_region_mass": float(model.node_mass[inner].sum())}
-
-
-def an_run(case, params=None, t_end=None, model="consistent"):
-    """The analytical model of a case (its own mapping unless ``params`` is given)."""
-    p = params or analytic.params_from_case(case)
-    coiled = case.fold.pattern in ("star", "coiled")
-    res = analytic.simulate(p, analytic.control_from_case(case), model=model,
-                            t_end=t_end or case.time.end, history_dt=case.output.history_dt,
-                            coiled=coiled, wrap=case.fold.wrap, omega_init=case.initial.omega,
-                            spin=case.initial.spin)
-    return res.history, res
-
-
-# ----------------------------------------------------------------------------- errors
-
-def first_pivot(an_hist):
-    """Time the analytical arm first leaves the coil (|phi| <= pi/2): end of the uncoiling."""
-    phi = an_hist["arm_angle"][:, 0]
-    idx = np.flatnonzero(np.abs(phi) <= HALF_PI + 1e-9)
-    return float(an_hist["time"][idx[0]]) if len(idx) else float(an_hist["time"][-1])
-
-
-def error_table(fe, an, windows):
-    """Max and RMS of |FE - analytic| (arm 0 and the mean over arms) per quantity and window.
-
-    windows: dict name -> (t_a, t_b). Returns {window: {quantity: {max, rms, max_all_arms}}}.
-    """
-    n = min(len(fe["time"]), len(an["time"]))
-    t = fe["time"][:n]
-    out = {}
-    for wname, (ta, tb) in windows.items():
-        sel = (t >= ta - 1e-12) & (t <= tb + 1e-12)
-        out[wname] = {"t": [ta, tb]}
-        for key, short, unit in QUANTITIES:
-            x, y = fe[key][:n][sel], an[key][:n][sel]
-            e = np.abs(x - y)
-            if e.ndim == 2:
-                e_all, e = e, e[:, 0]
-            else:
-                e_all = e[:, None]
-            out[wname][short] = {"max": float(e.max()) if len(e) else float("nan"),
-                                 "rms": float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan"),
-                                 "max_all_arms": float(e_all.max()) if len(e) else float("nan"),
-                                 "unit": unit}
-    return out
-
-
-def fmt_row(label, tab, window):
-    w = tab[window]
-    cells = [f"{w[s]['max']:.3g} / {w[s]['rms']:.3g}" for _, s, _ in QUANTITIES]
-    return f"| {label} | " + " | ".join(cells) + " |"
-
-
 # ----------------------------------------------------------------------------- plots
 
 def plot4(curves, out, title=None, t_max=None):
-    """Four-panel overlay (L, phi, omega_centre, omega_tip) of a list of (hist, label, style)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    panels = [("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
-              ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]")]
-    for h, label, style in curves:
-        t = h["time"]
-        sel = t <= (t_max if t_max else t[-1]) + 1e-12
-        for ax, (key, ylab) in zip(axes.flat, panels):
-            y = h[key]
-            if y.ndim == 2:
-                y = y[:, 0]
-            ax.plot(t[sel], y[sel], style, label=label, lw=1.1)
-            ax.set_ylabel(ylab)
-    for ax in axes[1]:
-        ax.set_xlabel("t [s]")
-    for ax in axes.flat:
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    """Four-panel overlay of a list of (history, label, style)."""
+    plot_histories(curves, out, title=title, t_max=t_max)
 
 
 def dump(name, data):
@@ -247,11 +57,11 @@ def save_hist(name, h):
 
 # ----------------------------------------------------------------------------- studies
 
-def compare(label, case, params=None, windows=None, contact_tol=None, store=None, variant=None):
+def compare(label, case, params=None, windows=None, store=None, variant=None):
     """One FE run and its analytical twin: error table, info. Returns (fe, an, record)."""
-    an, res = an_run(case, params)
+    an, res = analytic_twin(case, params)
     try:
-        fe, info, mesh, model = fe_run(case, contact_tol, variant)
+        fe, info, mesh, model = fe_run(case, variant)
     except RunError as exc:
         print(f"{label}: FE run failed: {exc}")
         return None, an, {"label": label, "failed": str(exc)}
@@ -357,7 +167,7 @@ def web_study():
         for ties, variant in variants:
             cs = load_case(path, ["web.mesh_width=5.0", f"fold.ties='{ties}'",
                                   f"time.end={t_end}"])
-            mesh, model = solver.prepare(cs)[:2]
+            mesh, model = prepare(cs)[:2]
             p, mp = web_params(cs, mesh, model)
             recs["mapping"][f"{ties}, mesh_width 5"] = mp
             label = f"{key}, t = 5 m, ties {ties}, {variant or 'as folded'}"
@@ -378,7 +188,7 @@ def web_study():
             (ramp, 3.0, "ramp", {"ramp": (0.0, 2.0), "after": (2.0, 3.0)}, "frame",
              "rigid_root")):
         cs = load_case(path, ["web.mesh_width=2.5", f"fold.ties='{ties}'", f"time.end={t_end}"])
-        mesh, model = solver.prepare(cs)[:2]
+        mesh, model = prepare(cs)[:2]
         p, mp = web_params(cs, mesh, model)
         recs["mapping"][f"{ties}, mesh_width 2.5"] = mp
         fe, an, rec = compare(f"{key}, t = 2.5 m, ties {ties}, {variant or 'as folded'}", cs,
@@ -386,9 +196,9 @@ def web_study():
         recs[key].append(dict(rec, mesh_width=2.5, ties=ties, variant=variant or "as folded"))
     # how much the root-region inertia in the mapping matters (analytic vs analytic)
     cs = load_case(free, ["web.mesh_width=5.0", "time.end=0.8"])
-    mesh, model = solver.prepare(cs)[:2]
-    an_drop, _ = an_run(cs, web_params(cs, mesh, model, root="drop")[0])
-    an_map, _ = an_run(cs, web_params(cs, mesh, model)[0])
+    mesh, model = prepare(cs)[:2]
+    an_drop, _ = analytic_twin(cs, web_params(cs, mesh, model, root="drop")[0])
+    an_map, _ = analytic_twin(cs, web_params(cs, mesh, model)[0])
     recs["mapping_effect_root_dropped"] = error_table(an_drop, an_map, {"all": (0.0, 0.8)})
     dump("web", recs)
     return recs
@@ -408,7 +218,7 @@ def tri_study():
         curves = []
         for variant in (None, "rigid_root"):
             cs = load_case(case, sets)
-            mesh, model = solver.prepare(cs)[:2]
+            mesh, model = prepare(cs)[:2]
             p, mp = web_params(cs, mesh, model)
             recs["mapping"]["tritri, mesh_width 5"] = mp
             label = f"tritri {key}, t = 5 m, {variant or 'as folded'}"
@@ -428,11 +238,11 @@ def figures():
     """The paper's Figs. 5-10 (Zylon unless stated), FE and analytic overlaid."""
     recs = {}
 
-    def fe_an(path, sets=(), web=False, t_end=None, tol=None):
+    def fe_an(path, sets=(), web=False, t_end=None):
         cs = load_case(path, list(sets) + ([f"time.end={t_end}"] if t_end else []))
-        fe, info, mesh, model = fe_run(cs, tol)
-        an_case, _ = an_run(cs)
-        an_map = an_run(cs, web_params(cs, mesh, model)[0])[0] if web else None
+        fe, info, mesh, model = fe_run(cs)
+        an_case, _ = analytic_twin(cs)
+        an_map = analytic_twin(cs, web_params(cs, mesh, model)[0])[0] if web else None
         return cs, fe, info, an_case, an_map
 
     def summary(h):
@@ -467,7 +277,7 @@ def figures():
     # Fig. 8: analytical only, r0 = 1 m, M0 = 60 pi, omega0 = pi/2, 2 pi, 8 pi
     curves, recs["fig8"] = [], {}
     for tag, lab in (("pi2", "omega0 = pi/2"), ("2pi", "omega0 = 2 pi"), ("8pi", "omega0 = 8 pi")):
-        an8, _ = an_run(load_case(CASES / f"analytic_fig8_{tag}.toml"))
+        an8, _ = analytic_twin(load_case(CASES / f"analytic_fig8_{tag}.toml"))
         curves.append((an8, lab, "-"))
         recs["fig8"][tag] = summary(an8)
     plot4(curves, IMG / "fig8.png", "Fig. 8 (analytical): r0 = 1 m, M0 = 60 pi N m")

@@ -37,9 +37,11 @@ from pathlib import Path
 import numpy as np
 from throughput import load_average, machine
 
-from spinweb_fe import analytic
+from spinweb_fe.analytic import solve as analytic
 from spinweb_fe import case as case_mod
-from spinweb_fe.solver import energy_balance, prepare, simulate
+from spinweb_fe.case.scene import prepare
+from spinweb_fe.record.energy import energy_balance
+from spinweb_fe.run.loop import Schedule, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results"
@@ -71,8 +73,8 @@ def fe_run(spec, value, cfl, threads=None):
            "load_1min": load_average()}
     t0 = time.perf_counter()
     try:
-        res = simulate(model, control, state, dt, case.time.end, case.output.history_dt,
-                       threads=threads)
+        res = simulate(model, control, state, dt,
+                       Schedule(case.time.end, case.output.history_dt), threads=threads)
     except Exception as exc:  # noqa: BLE001 - an unstable setting is a result, not a crash
         row.update(status=f"failed: {exc}", wall_s=time.perf_counter() - t0)
         return row, None
@@ -80,7 +82,7 @@ def fe_run(spec, value, cfl, threads=None):
     e = energy_balance(h)
     scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["torque_work"]).max())
     row.update(status=res.status, steps=res.steps, loop_s=res.loop_s, compile_s=res.compile_s,
-               wall_s=time.perf_counter() - t0, threads=res.extra["threads"],
+               wall_s=time.perf_counter() - t0, threads=res.threads,
                energy_error=float(np.abs(e - e[0]).max() / scale))
     return row, h
 
@@ -129,7 +131,7 @@ def run_problem(name, spec, quick=False):
         case = case_mod.load(ROOT / "cases" / f"{spec['case']}.toml",
                              [f"time.end={spec['end']}"])
         t0 = time.perf_counter()
-        ana_h = analytic.run_case(case, model="consistent").history
+        ana_h = analytic.solve_case(case, model="consistent").history
         ana_s = time.perf_counter() - t0
         ana = series(ana_h)
         keep["analytic"] = ana

@@ -16,7 +16,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from spinweb_fe import analytic, case as case_mod  # noqa: E402
+from spinweb_fe import case as case_mod  # noqa: E402
+from spinweb_fe.analytic import solve as analytic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 IMG = ROOT / "docs" / "img"
@@ -65,7 +66,7 @@ def main():
     IMG.mkdir(parents=True, exist_ok=True)
     # free deployment of the paper's web (Figs. 5-6)
     free = paper_case()
-    runs = {m: analytic.run_case(free, model=m) for m in ("printed", "consistent")}
+    runs = {m: analytic.solve_case(free, model=m) for m in ("printed", "consistent")}
     four_panel([("printed (Eqs. 4, 8a-b as printed)", runs["printed"], "r-"),
                 ("consistent (Lagrangian)", runs["consistent"], "k-")],
                "Free deployment, S = 100 m, r0 = 6.3 m, 8 pi rad/s", IMG / "analytic_free.png")
@@ -88,7 +89,7 @@ def main():
     # spin ramp 0 -> 8 pi in 2 s (Salama et al., Figs. 9-10)
     ramp = paper_case('control.law="spin_ramp"', f"control.omega_max={W0!r}",
                       "control.ramp_time=2.0", "time.end=6.0", "initial.omega=0.0")
-    rr = {m: analytic.run_case(ramp, model=m) for m in ("printed", "consistent")}
+    rr = {m: analytic.solve_case(ramp, model=m) for m in ("printed", "consistent")}
     for m in rr:
         drift_report(f"ramp {m}", rr[m], (0.5, 1.0, 2.0, 6.0))
         h = rr[m].history
@@ -103,7 +104,7 @@ def main():
     for stem, label, style in (("pi2", "omega0 = pi/2", "b-"), ("2pi", "omega0 = 2 pi", "g-"),
                                ("8pi", "omega0 = 8 pi", "r-")):
         c = case_mod.load(ROOT / "cases" / f"analytic_fig8_{stem}.toml")
-        res = analytic.run_case(c, model="consistent")
+        res = analytic.solve_case(c, model="consistent")
         h = res.history
         L = h["arm_length"][:, 0]
         full = h["time"][np.argmax(L >= c.web.side / 2 - 1e-9)] if L.max() >= 49.999 else None

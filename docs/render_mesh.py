@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from meshgen.build import build_mesh
+from spinweb_fe.case.scene import build_mesh
 from meshgen.fold import star_fold
 from spinweb_fe.case import load
 

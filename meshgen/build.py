@@ -1,90 +1,88 @@
-"""The single entry point from a validated case to the initial mesh."""
+"""From generator parameters to the initial mesh of a scene: flat web -> (star fold + coil |
+flat), or tethers. Pure: plain parameters in, a Mesh out, MeshValueError (naming the
+parameter) on bad input."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from meshgen.checks import MeshValueError, check_mesh
-from meshgen.flat import default_cutout, effective_cutout, flat_web
+from meshgen.checks import MeshValueError
+from meshgen.flat import default_cutout, effective_cutout, flat_quadquad
 from meshgen.fold import fold_web
 from meshgen.mesh import Mesh
+from meshgen.registry import topology
 from meshgen.tethers import tethers
 from meshgen.topologies import flat_other, outline_cutout
-from spinweb_fe.errors import InputError
 
-# generator parameter -> case key, per scene
-_WEB_KEYS = {"side": "web.side", "mesh_width": "web.mesh_width",
-             "elements_per_segment": "web.elements_per_segment",
-             "hub_cutout": "web.hub_cutout", "hub_radius": "hub.radius",
-             "topology": "web.topology", "pattern": "fold.pattern", "wrap": "fold.wrap",
-             "ties": "fold.ties", "corner_mass": "tip_mass.mass"}
-_TETHER_KEYS = {"count": "tethers.count", "length": "tethers.length",
-                "elements": "tethers.elements", "hub_radius": "hub.radius",
-                "tip_mass": "tip_mass.mass", "pattern": "fold.pattern", "wrap": "fold.wrap"}
+__all__ = ["flat_web", "quadquad_cutout", "tethers", "web_mesh"]
 
 
-def build_mesh(case) -> Mesh:
-    """Initial mesh of a case: flat web -> (star fold + coil | flat), or tethers.
+def flat_web(name: str, side: float, mesh_width: float, elements_per_segment: int,
+             corner_mass: float, hub_cutout: float) -> Mesh:
+    """The flat web of a topology: quadquad with a square cut-out of half-width
+    ``hub_cutout`` (a grid line), the others with a disc of that radius removed."""
+    topology(name)
+    if name == "quadquad":
+        return flat_quadquad(side, mesh_width, elements_per_segment, corner_mass, hub_cutout)
+    return flat_other(name, side, mesh_width, elements_per_segment, corner_mass, hub_cutout)
 
-    A quadquad web is tied to the hub as ``fold.ties`` says (``frame``: the whole
-    boundary of the cut-out; ``axes``: its 4 nodes on the axes), see docs/mesh.md. A
-    star-folded web of another topology gets a hole shaped like its outline (inradius
-    ``web.hub_cutout``, default the hub radius; tritri rounds it out to a mesh line) and
-    is tied by its frame; a flat one keeps the disc cut-out with its rim tied.
+
+def quadquad_cutout(side: float, mesh_width: float, hub_radius: float,
+                    hub_cutout: float | None = None) -> float:
+    """Cut-out half-width c [m] of a quadquad web: ``hub_cutout`` (default: the smallest
+    grid line at or outside the hub radius) rounded outwards to a grid line."""
+    if hub_cutout is None:
+        return default_cutout(side, mesh_width, hub_radius)
+    return effective_cutout(side, mesh_width, hub_cutout)
+
+
+def web_mesh(name: str, side: float, mesh_width: float, elements_per_segment: int,
+             corner_mass: float, hub_radius: float, hub_cutout: float | None = None,
+             pattern: str = "star", wrap: str = "trailing", ties: str = "frame") -> Mesh:
+    """Initial mesh of a web scene.
+
+    A quadquad web is tied to the hub as ``ties`` says (``frame``: the whole boundary of the
+    cut-out; ``axes``: its 4 nodes on the axes), see docs/mesh.md. A star-folded web of
+    another topology gets a hole shaped like its outline (inradius ``hub_cutout``, default
+    the hub radius; tritri rounds it out to a mesh line) and is tied by its frame; a flat
+    one keeps the disc cut-out with its rim tied.
 
     Parameters
     ----------
-    case : spinweb_fe.case.Case
-        Validated case.
+    name : str
+        Topology (see :data:`meshgen.registry.TOPOLOGIES`).
+    side, mesh_width : float [m]
+    elements_per_segment : int
+    corner_mass : float [kg]
+    hub_radius : float [m]
+    hub_cutout : float or None [m]
+    pattern : {'star', 'flat'}
+    wrap : {'trailing', 'leading'}
+    ties : {'frame', 'axes'}
 
     Returns
     -------
     Mesh
         ``node_pos`` is the initial (folded) state, ``node_ref`` the flat deployed state.
-
-    Raises
-    ------
-    InputError
-        If a generator rejects the case (key named) or the mesh violates an invariant of
-        :func:`meshgen.checks.check_mesh`.
     """
-    keys = _WEB_KEYS if case.scene == "web" else _TETHER_KEYS
-    try:
-        mesh = _build_web(case) if case.scene == "web" else _build_tethers(case)
-    except MeshValueError as exc:
-        raise InputError(case.source, keys.get(exc.param, case.scene), exc.reason) from None
-    problems = check_mesh(mesh)
-    if problems:
-        raise InputError(case.source, case.scene, "invalid mesh: " + "; ".join(problems))
-    return mesh
-
-
-def resolved_cutout(case) -> float:
-    """Cut-out half-width c [m] of a quadquad web case: web.hub_cutout (or the hub radius
-    by default) rounded outwards to a grid line."""
-    web = case.web
-    if web.hub_cutout is None:
-        return default_cutout(web.side, web.mesh_width, case.hub.radius)
-    return effective_cutout(web.side, web.mesh_width, web.hub_cutout)
-
-
-def _build_web(case) -> Mesh:
-    web, hub, fold = case.web, case.hub, case.fold
-    if web.topology == "quadquad":
-        flat = flat_web(web, case.tip_mass.mass, resolved_cutout(case))
-        return fold_web(flat, hub.radius, fold.pattern, fold.wrap, fold.ties)
-    cut = hub.radius if web.hub_cutout is None else web.hub_cutout
-    if fold.pattern == "star":
+    topology(name)
+    if name == "quadquad":
+        c = quadquad_cutout(side, mesh_width, hub_radius, hub_cutout)
+        flat = flat_quadquad(side, mesh_width, elements_per_segment, corner_mass, c)
+        return fold_web(flat, hub_radius, pattern, wrap, ties)
+    cut = hub_radius if hub_cutout is None else hub_cutout
+    if pattern == "star":
         # a hole shaped like the outline: its boundary is the hub frame of the fold
-        if fold.ties == "axes":
+        if ties == "axes":
             raise MeshValueError("ties", "ties = 'axes' needs the square web with a square "
-                                 f"mesh (web.topology = '{web.topology}'); use 'frame'")
-        c = outline_cutout(web.topology, web.side, web.mesh_width, cut)
-        flat = flat_other(web.topology, web.side, web.mesh_width, web.elements_per_segment,
-                          case.tip_mass.mass, c, hole="outline")
-        return fold_web(flat, hub.radius, "star", fold.wrap, "frame")
+                                 f"mesh (topology '{name}'); use 'frame'")
+        c = outline_cutout(name, side, mesh_width, cut)
+        flat = flat_other(name, side, mesh_width, elements_per_segment, corner_mass, c,
+                          hole="outline")
+        return fold_web(flat, hub_radius, "star", wrap, "frame")
     # flat: the generator cuts a disc of this radius and ties its rim
-    return _tie_innermost(flat_web(web, case.tip_mass.mass, cut), hub.radius)
+    return _tie_innermost(flat_web(name, side, mesh_width, elements_per_segment, corner_mass,
+                                   cut), hub_radius)
 
 
 def _tie_innermost(mesh: Mesh, hub_radius: float) -> Mesh:
@@ -95,9 +93,3 @@ def _tie_innermost(mesh: Mesh, hub_radius: float) -> Mesh:
         r = np.hypot(mesh.node_ref[:, 0], mesh.node_ref[:, 1])
         sets["hub_tied"] = np.flatnonzero(r <= r.min() + 1e-6 * max(1.0, r.min()))
     return mesh.replace(node_sets=sets, hub_radius=float(hub_radius))
-
-
-def _build_tethers(case) -> Mesh:
-    t = case.tethers
-    return tethers(t.count, t.length, t.elements, case.hub.radius, case.tip_mass.mass,
-                   case.fold.pattern, case.fold.wrap)

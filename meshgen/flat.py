@@ -9,48 +9,10 @@ its second node. Elements: the k elements of each segment, in the same segment o
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from meshgen.checks import MeshValueError
 from meshgen.mesh import Mesh
-
-#: cable length per unit web area [1/m] times the mesh width t, per mesh type
-LENGTH_PER_AREA_T = {"quad": 2.0, "tri": 2.0 * math.sqrt(3.0), "hex": 2.0 / math.sqrt(3.0)}
-#: mesh type of each topology (web outline + mesh: quadtri is a square web, triangular mesh)
-MESH_TYPE = {"quadquad": "quad", "quadtri": "tri", "quadhex": "hex",
-             "tritri": "tri", "trihex": "hex", "triquad": "quad"}
-
-
-def area_from_areal_density(topology: str, areal_density: float, mesh_width: float,
-                            density: float) -> float:
-    """Cable cross-section area [m^2] that gives a web the areal density rho_A.
-
-    A = rho_A / (rho * lambda), with lambda the cable length per unit web area of an
-    infinite mesh of width t: 2/t for a square mesh of spacing t, 2*sqrt(3)/t for a
-    triangular mesh of edge t, 2/(sqrt(3) t) for a hexagonal mesh of edge t.
-
-    Parameters
-    ----------
-    topology : str
-        quadquad | quadtri | quadhex | tritri | trihex | triquad.
-    areal_density : float [kg/m^2]
-    mesh_width : float [m]
-        Mesh spacing t (edge length for triangular and hexagonal meshes).
-    density : float [kg/m^3]
-        Cable density rho.
-
-    Returns
-    -------
-    float [m^2]
-    """
-    if topology not in MESH_TYPE:
-        raise MeshValueError("topology", f"unknown topology '{topology}' "
-                             f"(valid: {', '.join(MESH_TYPE)})")
-    length_per_area = LENGTH_PER_AREA_T[MESH_TYPE[topology]] / mesh_width
-    return areal_density / (density * length_per_area)
-
 
 def grid_count(side: float, mesh_width: float) -> int:
     """Number N = S/t of mesh widths per side; ValueError unless it is an integer >= 2."""
@@ -180,27 +142,3 @@ def flat_quadquad(side: float, mesh_width: float, elements_per_segment: int = 1,
                    "lines_y": np.arange(len(e_x), len(elems)),
                    "boundary": np.flatnonzero(on_edge)},
         arm_length=a)
-
-
-def flat_web(web_cfg, corner_mass: float, hub_cutout: float) -> Mesh:
-    """Flat web of any topology from the case's ``[web]`` table.
-
-    quadquad is built here; the other topologies by ``meshgen.topologies.flat_other``
-    (imported lazily).
-
-    Parameters
-    ----------
-    web_cfg : WebConfig
-        ``topology``, ``side`` [m], ``mesh_width`` [m], ``elements_per_segment``.
-    corner_mass : float [kg]
-    hub_cutout : float [m]
-        quadquad: half-width c of the square cut-out (rounded outwards to a grid line,
-        see :func:`default_cutout`); other topologies: radius of the disc that
-        ``flat_other`` removes.
-    """
-    if web_cfg.topology == "quadquad":
-        return flat_quadquad(web_cfg.side, web_cfg.mesh_width, web_cfg.elements_per_segment,
-                             corner_mass, hub_cutout)
-    from meshgen.topologies import flat_other
-    return flat_other(web_cfg.topology, web_cfg.side, web_cfg.mesh_width,
-                      web_cfg.elements_per_segment, corner_mass, hub_cutout)

@@ -35,10 +35,8 @@ import numpy as np
 
 from meshgen.checks import MeshValueError
 from meshgen.mesh import POLYGON_COS, POLYGON_TAN, Mesh
+from meshgen.registry import TIES, WEB_FOLDS, WRAP_SIGN
 
-WRAP_SIGN = {"trailing": 1, "leading": -1}
-#: hub attachments of the star-folded web: the whole hole boundary, or the 4 axis nodes
-TIES = ("frame", "axes")
 
 
 def _unit(angle: np.ndarray) -> np.ndarray:
@@ -378,8 +376,9 @@ def fold_web(mesh: Mesh, hub_radius: float, pattern: str = "star",
     """Flat web with an outline-shaped hole -> arms + ties (``flat``) or star fold + coil
     (``star``); ``ties`` = ``frame`` (the whole hole boundary, default) or ``axes``
     (4 nodes, square web only)."""
-    if pattern not in ("star", "flat"):
-        raise MeshValueError("pattern", f"unknown web fold '{pattern}' (valid: star, flat)")
+    if pattern not in WEB_FOLDS:
+        raise MeshValueError("pattern", f"unknown web fold '{pattern}' "
+                             f"(valid: {', '.join(WEB_FOLDS)})")
     web = assign_arms(mesh, hub_radius, ties)
     if pattern == "flat":
         return web

@@ -13,6 +13,7 @@ import numpy as np
 from meshgen.checks import MeshValueError
 from meshgen.fold import coil
 from meshgen.mesh import Mesh
+from meshgen.registry import TETHER_FOLDS
 
 
 def tethers(count: int, length: float, elements: int, hub_radius: float,
@@ -57,9 +58,9 @@ def tethers(count: int, length: float, elements: int, hub_radius: float,
         raise MeshValueError("hub_radius", f"must be > 0, got {hub_radius:g} m")
     if tip_mass < 0:
         raise MeshValueError("tip_mass", f"must be >= 0, got {tip_mass:g} kg")
-    if pattern not in ("coiled", "straight"):
+    if pattern not in TETHER_FOLDS:
         raise MeshValueError("pattern", f"unknown tether fold '{pattern}' "
-                             "(valid: straight, coiled)")
+                             f"(valid: {', '.join(TETHER_FOLDS)})")
     theta = 2.0 * math.pi * np.arange(n) / n
     s = np.arange(m + 1) * (length / m)
     r = hub_radius + s

@@ -50,22 +50,12 @@ from scipy.spatial import cKDTree
 
 from meshgen.checks import MeshValueError
 from meshgen.mesh import Mesh
+from meshgen.registry import TOPOLOGIES as REGISTRY
 
-TOPOLOGIES = ("tritri", "triquad", "trihex", "quadtri", "quadhex")
+#: the topologies built here (every one but quadquad, see meshgen.flat)
+TOPOLOGIES = tuple(name for name in REGISTRY if name != "quadquad")
 SNAP = 0.3
 _SQ3 = math.sqrt(3.0)
-
-
-def cable_length_per_area(topology: str, mesh_width: float) -> float:
-    """Cable length per unit web area [1/m] of an infinite mesh of width t.
-
-    Triangular mesh 2 sqrt(3)/t, square mesh 2/t, hexagonal mesh 2/(sqrt(3) t). The cable
-    area that gives an areal density rho_A is ``rho_A / (density * cable_length_per_area)``
-    (for the square mesh: rho_A t / (2 density), the paper's rule).
-    """
-    mesh = topology[-3:] if topology.endswith(("tri", "hex")) else topology[-4:]
-    factor = {"tri": 2 * _SQ3, "quad": 2.0, "hex": 2 / _SQ3}[mesh]
-    return factor / mesh_width
 
 
 def web_outline(shape: str, side: float) -> np.ndarray:

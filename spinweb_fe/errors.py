@@ -1,4 +1,4 @@
-"""Exceptions that the command line turns into exit codes (see CONTRACT.md)."""
+"""Exceptions that the command line turns into exit codes (see docs/interface.md)."""
 
 
 class InputError(Exception):
@@ -38,3 +38,22 @@ class RunError(Exception):
         self.cause = cause
         msg = cause if time is None else f"stopped at t = {time:.6g} s: {cause}"
         super().__init__(msg)
+
+
+class RunInterrupted(RunError):
+    """A run stopped cleanly by a signal at an event boundary (CLI exit code 1).
+
+    Parameters
+    ----------
+    signame : str
+        'SIGINT' or 'SIGTERM'.
+    time : float [s]
+        Simulated time of the stop.
+    """
+
+    def __init__(self, signame, time):
+        super().__init__(f"interrupted by {signame}", time=time)
+        self.signame = signame
+
+    def __str__(self):
+        return f"interrupted by {self.signame} at t = {self.time:.6g} s"

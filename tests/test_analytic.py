@@ -8,11 +8,13 @@ import h5py
 import numpy as np
 import pytest
 
-from spinweb_fe import analytic, case as case_mod
-from spinweb_fe.analytic import Control, drifts, simulate
-from spinweb_fe.analytic_models import (HALF_PI, ArmParams, accelerations, invariants,
+from spinweb_fe import case as case_mod
+from spinweb_fe.analytic import solve as analytic
+from spinweb_fe.analytic.solve import drifts, integrate
+from spinweb_fe.fe.control import free, make_control
+from spinweb_fe.analytic.models import (HALF_PI, ArmParams, accelerations, invariants,
                                         rigid_inertia, root_tension, straight_tension, tip_rate)
-from spinweb_fe.results import HISTORY_UNITS
+from spinweb_fe.record.history import HISTORY_UNITS
 
 W0 = 8 * math.pi
 PAPER = ArmParams(n=4, H=50.0, r0=6.3, J_hub=3969.0, m_tip=10.0, m_lin=126.7 / 4)
@@ -112,7 +114,7 @@ def test_straight_arm_steady_tension(model):
     N = root_tension(p, 0.0, W0, W0, 0.0, False)
     assert N == pytest.approx(straight_tension(p, W0), rel=1e-14)
     # straight, radial and co-rotating at the start: it stays so, at the closed-form tension
-    r = simulate(p, Control(), model=model, t_end=0.2, history_dt=0.01, coiled=False,
+    r = integrate(p, free(), model=model, t_end=0.2, history_dt=0.01, coiled=False,
                  omega_init=W0)
     h = r.history
     assert np.allclose(h["arm_angle"], 0.0, atol=1e-12)
@@ -125,7 +127,7 @@ def test_straight_arm_steady_tension(model):
 @pytest.mark.parametrize("scene", ["tethers", "web"])
 def test_consistent_conserves_K_and_E(scene):
     c = case_mod.loads(case_text(scene, end=2.0))
-    r = analytic.run_case(c, model="consistent")
+    r = analytic.solve_case(c, model="consistent")
     dk, de = drifts(r)
     print(f"\n{scene}: consistent max|dK|/K0 = {np.abs(dk).max():.2e}, "
           f"max|dE|/E0 = {np.abs(de).max():.2e}, switches at "
@@ -138,7 +140,7 @@ def test_consistent_conserves_K_and_E(scene):
 
 def test_printed_drift_web():
     c = case_mod.loads(case_text("web", end=0.5))
-    r = analytic.run_case(c, model="printed")
+    r = analytic.solve_case(c, model="printed")
     dk, de = drifts(r)
     print(f"\nprinted web, 0.5 s at 8 pi: max|dK|/K0 = {np.abs(dk).max():.3f}, "
           f"max|dE|/E0 = {np.abs(de).max():.3f}")
@@ -148,7 +150,7 @@ def test_printed_drift_web():
 def test_point_mass_printed_is_consistent():
     """With massless tethers Eqs. 4-6 and the coiling substitutions are exact."""
     p = ArmParams(n=4, H=50.0, r0=6.3, J_hub=3969.0, m_tip=10.0)
-    hs = [simulate(p, Control(), model=m, t_end=1.0, history_dt=0.01).history
+    hs = [integrate(p, free(), model=m, t_end=1.0, history_dt=0.01).history
           for m in ("printed", "consistent")]
     for key in ("arm_length", "arm_angle", "hub_omega", "max_tension"):
         assert np.allclose(hs[0][key], hs[1][key], rtol=1e-6, atol=1e-6 * np.abs(hs[1][key]).max())
@@ -158,7 +160,7 @@ def test_point_mass_printed_is_consistent():
 def test_distributed_tends_to_point_mass(model):
     def final(m_lin):
         p = ArmParams(n=4, H=50.0, r0=6.3, J_hub=3969.0, m_tip=10.0, m_lin=m_lin)
-        h = simulate(p, Control(), model=model, t_end=0.6, history_dt=0.01).history
+        h = integrate(p, free(), model=model, t_end=0.6, history_dt=0.01).history
         return np.array([h["arm_length"][-1, 0], h["arm_angle"][-1, 0], h["hub_omega"][-1]])
     ref = final(0.0)
     errs = [np.abs(final(m) - ref).max() for m in (1e-1, 1e-2, 1e-3)]
@@ -170,7 +172,7 @@ def test_distributed_tends_to_point_mass(model):
 def test_start_length_convergence(model):
     vals = []
     for f in (1e-2, 1e-3, 1e-4):
-        h = simulate(PAPER, Control(), model=model, t_end=0.3, history_dt=0.01,
+        h = integrate(PAPER, free(), model=model, t_end=0.3, history_dt=0.01,
                      L0=f * PAPER.H).history
         vals.append(np.array([h["arm_length"][-1, 0], h["hub_omega"][-1], h["arm_angle"][-1, 0]]))
     d1, d2 = np.abs(vals[1] - vals[0]).max(), np.abs(vals[2] - vals[1]).max()
@@ -184,7 +186,7 @@ def test_start_length_convergence(model):
 @pytest.mark.parametrize("scene", ["tethers", "web"])
 def test_all_laws_balance(law, scene):
     c = case_mod.loads(case_text(scene, law, end=0.6))
-    r = analytic.run_case(c, model="consistent")
+    r = analytic.solve_case(c, model="consistent")
     h = r.history
     assert not r.stopped and h["time"][-1] == pytest.approx(0.6)
     dk, de = drifts(r)
@@ -202,7 +204,7 @@ def test_wraps_and_spins(extra):
     fold = {"leading": 'wrap = "leading"\n', "straight": 'pattern = "straight"\n'}.get(extra, "")
     c = case_mod.loads(case_text("tethers", end=0.6, fold=fold,
                                  spin="hub" if extra == "spin_hub" else "all"))
-    r = analytic.run_case(c)
+    r = analytic.solve_case(c)
     dk, de = drifts(r)
     assert np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7
     phi = r.history["arm_angle"][:, 0]
@@ -216,7 +218,7 @@ def test_wraps_and_spins(extra):
 
 
 def test_regime_switches_are_exact():
-    r = simulate(PAPER, Control(), t_end=1.0, history_dt=1e-3)
+    r = integrate(PAPER, free(), t_end=1.0, history_dt=1e-3)
     assert [s[2] for s in r.switches[:3]] == ["coiled", "pivoting", "coiled"]
     assert all(abs(abs(s[1]) - HALF_PI) < 1e-15 for s in r.switches[1:])
     L = r.history["arm_length"][:, 0]
@@ -225,7 +227,7 @@ def test_regime_switches_are_exact():
 
 def test_trailing_spin_ramp_captured_start():
     """From rest a trailing coil stays captured until the spin can unwind it."""
-    r = simulate(PAPER, Control("spin_ramp", omega_max=W0, ramp_time=2.0), t_end=1.0,
+    r = integrate(PAPER, make_control("spin_ramp", {"omega_max": W0, "ramp_time": 2.0}), t_end=1.0,
                  history_dt=1e-2)
     assert r.switches[0][2] == "coiled" and 0 < r.switches[0][0] < 0.02
     assert r.history["arm_length"][-1, 0] > 20.0
@@ -273,6 +275,6 @@ def test_cli_bad_model(tmp_path):
                          ids=lambda p: p.stem)
 def test_fig8_cases_run(path):
     c = case_mod.load(path, ["time.end=1.0", "output.history_dt=0.01"])
-    r = analytic.run_case(c)
+    r = analytic.solve_case(c)
     dk, de = drifts(r)
     assert not r.stopped and np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from meshgen.build import build_mesh
+from spinweb_fe.case.scene import build_mesh
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
-from spinweb_fe.arms import ArmTracker, arm_probes, deployed_length
+from spinweb_fe.record.arms import ArmTracker, arm_probes, deployed_length
 
 R0, H, M = 6.3, 50.0, 50
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from spinweb_fe.cli import main
-from spinweb_fe.results import HISTORY_UNITS
+from spinweb_fe.record.history import HISTORY_UNITS
 
 CASES = sorted((Path(__file__).parent.parent / "cases").glob("*.toml"))
 SHORT = ["--set", "time.end=0.004", "--set", "output.history_dt=0.001",

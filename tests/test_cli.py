@@ -7,7 +7,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from spinweb_fe import model as model_mod
+from spinweb_fe.fe import model as model_mod
 from spinweb_fe.cli import main
 
 CASES = Path(__file__).parent.parent / "cases"
@@ -50,7 +50,7 @@ def test_instability_exits_1_and_keeps_results(tmp_path, monkeypatch, capsys):
     """A step three times the critical one must be caught (non-finite or runaway energy): exit 1
     with the time and the cause; results.h5 stays readable with the rows written so far."""
     real = model_mod.choose_dt
-    monkeypatch.setattr("spinweb_fe.solver.choose_dt",
+    monkeypatch.setattr("spinweb_fe.case.scene.choose_dt",
                         lambda m, cfl, cap=None, hist=None: real(m, 1.0, None, None) * 3.0)
     out = tmp_path / "o"
     rc = main(["run", str(CASES / "paper_free_arms.toml"), "-o", str(out), "--set", "time.end=0.5",

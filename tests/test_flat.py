@@ -1,15 +1,15 @@
 """Flat QuadQuad web: counts against closed forms, cut-out, masses and the area rule."""
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from meshgen.checks import check_mesh
-from meshgen.flat import (area_from_areal_density, default_cutout, effective_cutout,
-                          flat_quadquad, flat_web)
+from meshgen.build import flat_web
+from meshgen.flat import default_cutout, effective_cutout, flat_quadquad
 from meshgen.mesh import lumped_mass
+from meshgen.registry import area_from_areal_density
 
 RHO_A, RHO = 1.267e-2, 1540.0
 
@@ -111,7 +111,5 @@ def test_web_mass_closed_form(side, t, k, cut):
 
 
 def test_flat_web_dispatch():
-    cfg = SimpleNamespace(topology="quadquad", side=20.0, mesh_width=1.0,
-                          elements_per_segment=2)
-    m = flat_web(cfg, 1.0, 1.0)
+    m = flat_web("quadquad", 20.0, 1.0, 2, 1.0, 1.0)
     assert (m.n_nodes, m.n_elems) == _closed_form(20.0, 1.0, 2, 1.0)

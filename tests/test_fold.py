@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from meshgen.build import build_mesh
+from spinweb_fe.case.scene import build_mesh
 from meshgen.checks import check_mesh, eq7_error
-from meshgen.flat import area_from_areal_density, default_cutout, flat_quadquad
+from meshgen.flat import default_cutout, flat_quadquad
 from meshgen.fold import assign_arms, coil, fold_web, frame_lead_in, star_fold, tie_mode
 from meshgen.mesh import lumped_mass
+from meshgen.registry import area_from_areal_density
 from spinweb_fe.case import loads
 from spinweb_fe.errors import InputError
 
@@ -421,7 +422,7 @@ def test_prestress_paper_web_ties(ties, ok):
     """Force method on the flat paper web (t = 5 m, c = 10 m, the lines x, y = +-5 m end
     on the hole boundary): with the frame tied the spin load is carried in tension
     (prestressable); with the 4 axis nodes tied the rim must bow in (distorts)."""
-    from spinweb_fe.prestress import analyse
+    from spinweb_fe.linear.prestress import analyse
 
     flat, _ = _web(5.0, 1)
     m = fold_web(flat, R0, "flat", ties=ties)

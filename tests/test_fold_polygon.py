@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from meshgen.build import build_mesh
+from spinweb_fe.case.scene import build_mesh
 from meshgen.checks import check_mesh, eq7_error, eq7_reference
 from meshgen.fold import assign_arms, coil, corner_coord, frame_lead_in, star_fold, tie_mode
 from meshgen.mesh import lumped_mass
-from meshgen.topologies import (_nearest_on_outline, cable_length_per_area, flat_other,
-                                outline_cutout, outline_hole)
+from meshgen.registry import cable_length_per_area
+from meshgen.topologies import _nearest_on_outline, flat_other, outline_cutout, outline_hole
 from spinweb_fe.case import loads
 from spinweb_fe.errors import InputError
 

@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 
 from meshgen.tethers import tethers
-from spinweb_fe.control import Control, LAWS
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import energy_balance, simulate
+from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.model import build_model, choose_dt
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.record.energy import energy_balance
+from spinweb_fe.run.loop import Schedule, simulate
 
 E, RHO, A = 180e9, 1540.0, 1.025e-5
-FREE = Control(LAWS["free"], np.zeros(1))
+FREE = free()
 
 
 def coiled_run(t_end, friction=0.0, wrap="trailing", omega=8 * math.pi, cfl=0.5, elements=25):
@@ -19,7 +21,7 @@ def coiled_run(t_end, friction=0.0, wrap="trailing", omega=8 * math.pi, cfl=0.5,
     model = build_model(mesh, E, RHO, A, hub_radius=6.3, hub_inertia=3969.0, hub_friction=friction)
     state = initial_state(model, omega, "all")
     dt = choose_dt(model, cfl, history_dt=1e-3)
-    return model, state, simulate(model, FREE, state, dt, t_end, history_dt=1e-3)
+    return model, state, simulate(model, FREE, state, dt, Schedule(t_end, 1e-3))
 
 
 @pytest.mark.parametrize("friction", [0.0, 0.3])
@@ -57,6 +59,6 @@ def test_steady_spinning_tether_root_tension():
                         hub_inertia=1e12)
     state = initial_state(model, w, "all")
     dt = choose_dt(model, 0.5, history_dt=1e-3)
-    res = simulate(model, FREE, state, dt, 0.3, history_dt=1e-3)
+    res = simulate(model, FREE, state, dt, Schedule(0.3, 1e-3))
     expect = w**2 * (10.0 * 56.3 + RHO * A * (6.3 * 50 + 50**2 / 2))
     assert res.history["max_tension"][-1] == pytest.approx(expect, rel=1e-3)

@@ -6,7 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe import kernels
+from spinweb_fe.fe import step
+from spinweb_fe.fe.control import LAWS, KernelLaw, make_control
+from spinweb_fe.fe.model import Elements
 
 EA = 1.845e6
 
@@ -23,7 +25,8 @@ def forces(pos, nodes, rest, ea, cd, vel=None):
     f = np.zeros_like(pos)
     t = np.zeros(len(nodes))
     vel = np.zeros_like(pos) if vel is None else vel
-    se, tmax, p = kernels.eval_elements(pos, vel, nodes, rest, ea, cd, f, t, True)
+    elems = Elements(np.asarray(nodes, np.int64), rest, 1.0 / rest, ea, cd, bool(np.any(cd > 0)))
+    se, tmax, p = step.eval_elements(elems, pos, vel, f, t, True)
     return f, t, se, tmax, p
 
 
@@ -86,8 +89,8 @@ def test_contact_impulse_is_radial_and_keeps_node_outside():
     vel = np.array([[-3.0, 2.0, 0.0]])
     m = np.array([2.0])
     lz0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0])
-    w, diss = kernels.apply_contact(pos, vel, np.zeros((1, 3)), m, np.array([0]), 1.0, 0.0, 10.0,
-                                    0.0, 0.0, 0.1)
+    w, diss = step.contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.0, 10.0, 0.0, 0.0,
+                                0.1)
     p1 = pos[0] + 0.1 * vel[0]
     assert math.hypot(p1[0], p1[1]) == pytest.approx(1.0, rel=1e-12)
     assert m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) == pytest.approx(lz0, rel=1e-14)
@@ -100,18 +103,32 @@ def test_contact_friction_moment_goes_to_the_hub():
     m = np.array([2.0])
     j, w0 = 10.0, 0.5
     L0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w0
-    w, diss = kernels.apply_contact(pos, vel, np.zeros((1, 3)), m, np.array([0]), 1.0, 0.3, j, w0,
-                                    0.0, 0.1)
+    w, diss = step.contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.3, j, w0, 0.0, 0.1)
     L1 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w
     assert L1 == pytest.approx(L0, rel=1e-14)
     assert w > w0 and diss > 0  # the sliding node drags the hub forward and loses energy
 
 
-@pytest.mark.parametrize("law,params,expect", [
-    (kernels.LAW_FREE, [0.0], (False, 0.0)),
-    (kernels.LAW_FEEDBACK, [100.0, 4.0, 0.0], (False, 50.0)),
-    (kernels.LAW_CONSTANT, [7.0, 0.0], (False, 7.0)),
-    (kernels.LAW_RAMP, [10.0, 4.0, 0.0], (True, 5.0)),
+@pytest.mark.parametrize("name,values,expect", [
+    ("free", {}, (False, 0.0)),
+    ("torque_feedback", {"M0": 100.0, "omega0": 4.0}, (False, 50.0)),
+    ("constant_torque", {"torque": 7.0}, (False, 7.0)),
+    ("spin_ramp", {"omega_max": 10.0, "ramp_time": 4.0}, (True, 5.0)),
 ])
-def test_control_laws(law, params, expect):
-    assert kernels.eval_control(law, np.array(params), 2.0, 2.0) == expect
+def test_control_laws(name, values, expect):
+    """Hand-computed values at t = 2 s, omega = 2 rad/s."""
+    assert make_control(name, values).torque_or_rate(2.0, 2.0) == expect
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_kernel_branch_of_each_law_is_its_analytical_form(name):
+    """The registry's analytical form and the kernel branch of every law agree at times and
+    rates around the law's breaks (exactly: the same arithmetic)."""
+    law = LAWS[name]
+    params = np.array([1.7 + k for k in range(len(law.keys))] + [0.0])
+    for t in (0.0, 0.3, 1.2, 2.69, 2.7, 2.71, 9.0):
+        for w in (-3.0, 0.0, 0.4, 6.0):
+            prescribed, value = step.eval_control(KernelLaw(law.code, params), t, w)
+            assert prescribed == law.prescribes_rate
+            expect = law.rate(params, t)[0] if prescribed else law.torque(params, t, w)
+            assert value == expect, (name, t, w)

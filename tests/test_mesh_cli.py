@@ -8,11 +8,12 @@ import meshio
 import numpy as np
 import pytest
 
-from meshgen.build import build_mesh
+from spinweb_fe.case.scene import build_mesh
 from meshgen.mesh import lumped_mass
 from spinweb_fe.case import load
 from spinweb_fe.cli import mesh as mesh_cmd
-from spinweb_fe.io_mesh import read_mesh_group, write_mesh_group, write_vtu
+from spinweb_fe.io.mesh import read_mesh_group, write_mesh_group
+from spinweb_fe.io.vtk import write_vtu
 
 CASES = Path(__file__).resolve().parents[1] / "cases"
 FILES = ("mesh.h5", "mesh_folded.vtu", "mesh_flat.vtu")

@@ -13,7 +13,8 @@ from meshgen.mesh import Mesh, lumped_mass
 from meshgen.topologies import flat_other
 from spinweb_fe.cli import prestress as prestress_cli
 from spinweb_fe.errors import InputError
-from spinweb_fe.prestress import analyse, equilibrium_matrix, free_dof_basis
+from spinweb_fe.linear.assembly import equilibrium_matrix, free_dof_basis
+from spinweb_fe.linear.prestress import analyse
 
 OMEGA, LINE = 8 * math.pi, 1540.0 * 1.025e-5
 SQ2 = math.sqrt(2.0)

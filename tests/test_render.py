@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from spinweb_fe import render as rd
+from spinweb_fe.post import render as rd
 from spinweb_fe.cli import main
 from spinweb_fe.errors import InputError
 
@@ -92,7 +92,7 @@ def test_falls_back_to_matplotlib(demo_h5, tmp_path, monkeypatch, caplog):
 
     monkeypatch.setattr(rd.PyvistaCanvas, "__init__", no_opengl)
     out = tmp_path / "fallback.png"
-    with caplog.at_level(logging.INFO, logger="spinweb"):
+    with caplog.at_level(logging.INFO, logger="spinweb_fe"):
         info = rd.render(demo_h5, out, size=SIZE)
     assert info["renderer"].startswith("matplotlib")
     assert "using matplotlib" in caplog.text
@@ -103,7 +103,7 @@ def test_falls_back_when_the_test_render_crashes(demo_h5, tmp_path, monkeypatch,
     """VTK without an OpenGL back end segfaults: 'auto' tests it in a child process first."""
     monkeypatch.setattr(rd, "pyvista_works", lambda: (False, "test render exited with code -11"))
     out = tmp_path / "fallback.png"
-    with caplog.at_level(logging.INFO, logger="spinweb"):
+    with caplog.at_level(logging.INFO, logger="spinweb_fe"):
         info = rd.render(demo_h5, out, size=SIZE)
     assert info["renderer"].startswith("matplotlib") and "code -11" in caplog.text
     assert_picture(np.asarray(Image.open(out).convert("RGB")))

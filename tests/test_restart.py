@@ -9,9 +9,9 @@ import h5py
 import numpy as np
 import pytest
 
-from spinweb_fe import checkpoint as ckmod
+from spinweb_fe.io import checkpoint as ckmod
 from spinweb_fe.cli import main
-from spinweb_fe.model import State
+from spinweb_fe.fe.state import HubState, State, Totals, to_arrays
 
 CASES = Path(__file__).parent.parent / "cases"
 # a star-folded web deploying from rigid rotation: it sits on the slack/taut kink, where any
@@ -70,7 +70,7 @@ def test_restart_cuts_back_what_was_written_after_the_checkpoint(reference, tmp_
         if ck.steps * ck.dt == pytest.approx(0.1):
             shutil.copy(path, kept)
 
-    monkeypatch.setattr(ckmod, "write_checkpoint", keep_a_copy)
+    monkeypatch.setattr("spinweb_fe.run.driver.write_checkpoint", keep_a_copy)
     assert run(out, 0.2, "--checkpoint-dt", "0.05") == 0
     shutil.copy(kept, out / "checkpoint.h5")
     (out / "frames" / "web_000099.vtu").write_text("stale frame of another run")
@@ -103,22 +103,29 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     rng = np.random.default_rng(0)
     pos = rng.standard_normal((7, 3)) * 1e3
     pos[0, 0], pos[1, 1] = 5e-324, -0.0  # subnormal and negative zero survive
-    st = State(pos, rng.standard_normal((7, 3)), rng.standard_normal(8))
+    one = lambda: rng.standard_normal(1)  # noqa: E731
+    st = State(pos, rng.standard_normal((7, 3)), HubState(one(), one()),
+               Totals(one(), one(), one()), np.array([12345], np.int64), one())
     entries = [(0.0, "frames/web_000000.vtu"), (0.05, "frames/web_000001.vtu")]
+    memory = {"arms": {"prev_phi": np.array([np.nan, 1.0]),
+                       "prev_wound": np.array([True, False])},
+              "energy": {"ref": np.array([1.5, 2.5])}}
     ck = ckmod.Checkpoint(state=st, dt=1.1e-5, history_rows=12, frames=2, pvd_entries=entries,
                           case_toml="[time]\nend = 1.0\n", case_source="a/b.toml",
-                          checkpoint_dt=0.5, energy_ref=(1.5, 2.5),
-                          arm_memory={"prev_phi": np.array([np.nan, 1.0])}, threads=2)
+                          checkpoint_dt=0.5, memory=memory, threads=2)
     path = ckmod.write_checkpoint(tmp_path / "checkpoint.h5", ck)
     back = ckmod.read_checkpoint(path)
-    for name in ("pos", "vel", "hub"):
-        a, b = getattr(st, name), getattr(back.state, name)
-        assert a.dtype == b.dtype == np.float64
+    for name, a in to_arrays(st).items():
+        b = to_arrays(back.state)[name]
+        assert a.dtype == b.dtype and a.dtype in (np.float64, np.int64)
         assert a.tobytes() == b.tobytes(), name
     assert (back.dt, back.history_rows, back.frames, back.threads) == (1.1e-5, 12, 2, 2)
-    assert back.pvd_entries == ck.pvd_entries and back.energy_ref == (1.5, 2.5)
+    assert back.steps == 12345
+    assert back.pvd_entries == ck.pvd_entries
     assert back.case_toml == ck.case_toml and back.case_source == "a/b.toml"
-    assert np.array_equal(back.arm_memory["prev_phi"], [np.nan, 1.0], equal_nan=True)
+    assert np.array_equal(back.memory["arms"]["prev_phi"], [np.nan, 1.0], equal_nan=True)
+    assert back.memory["arms"]["prev_wound"].tolist() == [True, False]
+    assert back.memory["energy"]["ref"].tolist() == [1.5, 2.5]
     assert not (tmp_path / "checkpoint.h5.tmp").exists()
 
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from spinweb_fe.cli import main
-from spinweb_fe.results import read_history
+from spinweb_fe.io.h5 import read_history
 
 CASES = Path(__file__).parent.parent / "cases"
 # about 90 s of run time: a signal always arrives mid-run; frames every 0.01 s of simulated
-# time and the wall-time cap of a chunk (solver.WALL_CHUNK_S) bring events often
+# time and the wall-time cap of a chunk (run.loop.WALL_CHUNK_S) bring events often
 LONG = [str(CASES / "paper_free_web_stiff.toml"), "--set", "time.end=5",
         "--set", "output.frame_dt=0.01", "--no-progress"]
 MESSAGE = re.compile(r"spinweb: interrupted by (SIG\w+) at t = ([0-9.e+-]+) s")
@@ -145,10 +145,10 @@ def test_in_process_handlers_are_restored(tmp_path, capsys):
 def test_instability_keeps_readable_results_and_says_why(tmp_path, monkeypatch, capsys):
     """A step three times the critical one blows up: exit 1 with time and cause, results.h5
     and web.pvd readable, ``status`` names the failure, no checkpoint after it."""
-    from spinweb_fe import model as model_mod
+    from spinweb_fe.fe import model as model_mod
 
     real = model_mod.choose_dt
-    monkeypatch.setattr("spinweb_fe.solver.choose_dt",
+    monkeypatch.setattr("spinweb_fe.case.scene.choose_dt",
                         lambda m, cfl, cap=None, hist=None: real(m, 1.0, None, None) * 3.0)
     out = tmp_path / "o"
     rc = main(["run", str(CASES / "paper_free_arms.toml"), "-o", str(out), "--no-progress",
@@ -174,7 +174,7 @@ def test_instability_keeps_readable_results_and_says_why(tmp_path, monkeypatch, 
 
 def test_second_sigint_aborts_at_once():
     """The first SIGINT only sets the flag; a second one raises KeyboardInterrupt."""
-    from spinweb_fe.solver import StopSignals
+    from spinweb_fe.run.terminal import StopSignals
 
     before = signal.getsignal(signal.SIGINT)
     with pytest.raises(KeyboardInterrupt):

@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from meshgen.mesh import Mesh
-from spinweb_fe.control import Control, LAWS
-from spinweb_fe.model import build_model, initial_state
-from spinweb_fe.solver import energy_balance, simulate
+from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.model import build_model
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.record.energy import energy_balance
+from spinweb_fe.run.loop import Schedule, simulate
 
 E, RHO, A = 180e9, 1540.0, 1.025e-5
-FREE = Control(LAWS["free"], np.zeros(1))
+FREE = free()
 
 
 def oscillator(delta, prestrain=0.1, point_mass=5.0):
@@ -30,7 +32,7 @@ def oscillator(delta, prestrain=0.1, point_mass=5.0):
 def run_oscillator(dt, t_end, delta=1e-3):
     model = oscillator(delta)
     state = initial_state(model, 0.0, "hub")
-    res = simulate(model, FREE, state, dt, t_end, history_dt=dt)
+    res = simulate(model, FREE, state, dt, Schedule(t_end, dt))
     return model, res
 
 
@@ -39,11 +41,11 @@ def test_oscillator_half_period_and_energy():
     T = 2 pi sqrt(m / 2k)); energy is conserved to O(dt^2) (dt = T/200: 1e-4)."""
     delta = 1e-3
     model = oscillator(delta)
-    period = 2 * math.pi * math.sqrt(model.node_mass[1] / (2 * E * A))
+    period = 2 * math.pi * math.sqrt(model.nodes.mass[1] / (2 * E * A))
     dt = period / 200
     state = initial_state(model, 0.0, "hub")
-    res = simulate(model, FREE, state, dt, period / 2, history_dt=dt)
-    assert state.pos[1, 0] == pytest.approx(-delta, rel=2e-4)
+    res = simulate(model, FREE, state, dt, Schedule(period / 2, dt))
+    assert state.node_pos[1, 0] == pytest.approx(-delta, rel=2e-4)
     e = energy_balance(res.history)
     assert np.max(np.abs(e - e[0])) / e[0] < 1e-4
     assert np.allclose(res.history["angular_momentum"], 0.0, atol=1e-12)
@@ -53,16 +55,16 @@ def test_second_order_convergence_in_dt():
     """Error at t = 2.25 periods (where the phase error shows fully) against delta cos(w t):
     the fitted log-log slope must be 2 (+-0.1)."""
     delta = 1e-3
-    w = math.sqrt(2 * E * A / oscillator(delta).node_mass[1])
+    w = math.sqrt(2 * E * A / oscillator(delta).nodes.mass[1])
     t_end = 2.25 * 2 * math.pi / w
     errs, dts = [], []
     for n in (40, 80, 160, 320):
         dt = 2 * math.pi / w / n
         mdl = oscillator(delta)
         state = initial_state(mdl, 0.0, "hub")
-        simulate(mdl, FREE, state, dt, t_end, history_dt=dt)
-        t = state.step * dt
-        errs.append(abs(state.pos[1, 0] - delta * math.cos(w * t)))
+        simulate(mdl, FREE, state, dt, Schedule(t_end, dt))
+        t = state.step[0] * dt
+        errs.append(abs(state.node_pos[1, 0] - delta * math.cos(w * t)))
         dts.append(dt)
     slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
     assert 1.9 < slope < 2.1, (slope, errs)

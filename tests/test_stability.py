@@ -10,13 +10,15 @@ from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.cli import main
-from spinweb_fe.control import LAWS, Control
+from spinweb_fe.fe.control import LAWS, Control, free
 from spinweb_fe.errors import RunError
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import energy_balance, simulate
+from spinweb_fe.fe.model import build_model, choose_dt
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.record.energy import energy_balance
+from spinweb_fe.run.loop import Schedule, simulate
 
 E, RHO, A = 180e9, 1540.0, 1.025e-5
-FREE = Control(LAWS["free"], np.zeros(1))
+FREE = free()
 
 
 def taut_chain(n_el=20, prestrain=0.01, kick=1e-4):
@@ -31,7 +33,7 @@ def taut_chain(n_el=20, prestrain=0.01, kick=1e-4):
                 node_sets={"hub_tied": [0, n_el], "tips": [n_el // 2]}, arm_root_angle=[0.0])
     model = build_model(mesh, E, RHO, A, hub_radius=0.0, hub_inertia=1e30)
     state = initial_state(model, 0.0, "hub")
-    state.vel[1:-1, 0] = kick * (-1.0) ** np.arange(1, n_el)  # the zig-zag (highest) mode
+    state.node_vel[1:-1, 0] = kick * (-1.0) ** np.arange(1, n_el)  # the zig-zag (highest) mode
     return model, state
 
 
@@ -43,12 +45,12 @@ def test_measured_stability_limit_matches_critical_step(ratio, stable):
     model, state = taut_chain()
     dt = ratio * model.dt_critical
     if stable:
-        res = simulate(model, FREE, state, dt, 4000 * dt, history_dt=100 * dt)
+        res = simulate(model, FREE, state, dt, Schedule(4000 * dt, 100 * dt))
         e = energy_balance(res.history)
         assert np.max(np.abs(e - e[0])) / e[0] < 0.05
     else:
         with pytest.raises(RunError):
-            simulate(model, FREE, state, dt, 4000 * dt, history_dt=100 * dt)
+            simulate(model, FREE, state, dt, Schedule(4000 * dt, 100 * dt))
 
 
 def test_solver_refuses_a_step_above_critical(capsys, tmp_path):
@@ -57,7 +59,7 @@ def test_solver_refuses_a_step_above_critical(capsys, tmp_path):
     assert main(["run", case, "-o", str(tmp_path), "--set", "time.cfl=1.2", "--no-progress"]) == 2
     assert "time.cfl: must be in (0, 1]" in capsys.readouterr().err
     c = case_mod.load(case, ["time.dt=1.0"])
-    from spinweb_fe.solver import prepare
+    from spinweb_fe.case.scene import prepare
 
     _, model, _, _, dt = prepare(c)
     assert dt <= c.time.cfl * model.dt_critical
@@ -80,7 +82,7 @@ def test_stiff_cable_runs_and_conserves():
     0.5 % and angular momentum to round-off."""
     model, state = spinning_tethers(E_mod=1000 * E, pattern="coiled")
     dt = choose_dt(model, 0.3, history_dt=1e-3)
-    h = simulate(model, FREE, state, dt, 0.05, 1e-3).history
+    h = simulate(model, FREE, state, dt, Schedule(0.05, 1e-3)).history
     e = energy_balance(h)
     assert np.max(np.abs(e - e[0])) / e[0] < 5e-3
     K = h["angular_momentum"]
@@ -95,7 +97,7 @@ def test_long_undamped_run_has_bounded_energy_error():
     the remedy, a small axial damping.)"""
     model, state = spinning_tethers(omega=2 * math.pi)
     dt = choose_dt(model, 0.3, history_dt=1e-2)
-    h = simulate(model, FREE, state, dt, 4.0, 1e-2).history
+    h = simulate(model, FREE, state, dt, Schedule(4.0, 1e-2)).history
     err = np.abs(energy_balance(h) - energy_balance(h)[0]) / h["kinetic_energy"][0]
     assert err.max() < 1e-5
 
@@ -107,7 +109,7 @@ def test_small_damping_keeps_long_runs_balanced():
     model = build_model(mesh, E, RHO, A, damping_ratio=0.001, hub_radius=6.3, hub_inertia=3969.0)
     state = initial_state(model, 2 * math.pi, "all")
     dt = choose_dt(model, 0.3, history_dt=1e-2)
-    h = simulate(model, FREE, state, dt, 8.0, 1e-2).history
+    h = simulate(model, FREE, state, dt, Schedule(8.0, 1e-2)).history
     err = np.abs(energy_balance(h) - energy_balance(h)[0]) / h["kinetic_energy"][0]
     assert err.max() < 1e-5
     assert h["damping_dissipation"][-1] > 0
@@ -118,7 +120,7 @@ def test_large_spin_and_strain():
     energy balance holds within 1 % over 0.3 s at the default cfl."""
     model, state = spinning_tethers(pattern="straight")
     dt = choose_dt(model, 0.3, history_dt=1e-3)
-    h = simulate(model, FREE, state, dt, 0.3, 1e-3).history
+    h = simulate(model, FREE, state, dt, Schedule(0.3, 1e-3)).history
     strain = h["max_tension"].max() / (E * A)
     assert strain > 0.05
     e = energy_balance(h)
@@ -131,7 +133,7 @@ def test_perturbed_coil(seed):
     angular momentum to round-off, energy within 1 %, arms paying out."""
     model, state = spinning_tethers(pattern="coiled", seed=seed)
     dt = choose_dt(model, 0.3, history_dt=1e-3)
-    h = simulate(model, FREE, state, dt, 0.3, 1e-3).history
+    h = simulate(model, FREE, state, dt, Schedule(0.3, 1e-3)).history
     K = h["angular_momentum"]
     assert np.max(np.abs(K - K[0])) / K[0] < 1e-11
     e = energy_balance(h)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from spinweb_fe import sweep as sw
+from spinweb_fe.sweep import run as sw
 from spinweb_fe.cli import main
 from spinweb_fe.errors import InputError
 

@@ -7,18 +7,19 @@ import pytest
 
 from meshgen.flat import flat_quadquad
 from meshgen.tethers import tethers
-from spinweb_fe.control import LAWS, Control
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import simulate
+from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.model import build_model, choose_dt
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.run.loop import Schedule, simulate
 
-FREE = Control(LAWS["free"], np.zeros(1))
+FREE = free()
 
 
 def run(mesh, threads, t_end=0.05, **kw):
     model = build_model(mesh, 180e9, 1540.0, 1.025e-5, **kw)
     state = initial_state(model, 8 * math.pi, "all")
     dt = choose_dt(model, 0.3, history_dt=1e-3)
-    return simulate(model, FREE, state, dt, t_end, 1e-3, threads=threads).history
+    return simulate(model, FREE, state, dt, Schedule(t_end, 1e-3), threads=threads).history
 
 
 @pytest.mark.parametrize("friction", [0.0, 0.2])

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from meshgen.checks import MeshValueError, check_mesh
-from meshgen.topologies import (TOPOLOGIES, cable_length_per_area, flat_other,
-                                web_outline)
+from meshgen.registry import cable_length_per_area
+from meshgen.topologies import TOPOLOGIES, flat_other, web_outline
 
 SQ3 = math.sqrt(3.0)
 LATTICE_DEGREE = {"tri": 6, "quad": 4, "hex": 3}

@@ -8,9 +8,10 @@ import numpy as np
 from closed_forms import quadquad_line_tensions
 
 from meshgen.flat import flat_quadquad
-from spinweb_fe.control import LAWS, Control
-from spinweb_fe.model import build_model, choose_dt, initial_state
-from spinweb_fe.solver import current_tension, simulate
+from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.model import build_model, choose_dt
+from spinweb_fe.fe.state import initial_state
+from spinweb_fe.run.loop import Schedule, current_tension, simulate
 
 E, RHO, A = 180e12, 1540.0, 1.025e-5  # 1000x Zylon: strain ~1e-7, elasticity negligible
 
@@ -24,8 +25,8 @@ def test_spinning_flat_web_tensions_match_statics():
                         contact=False)
     state = initial_state(model, omega, "all")
     dt = choose_dt(model, 0.3, history_dt=1e-3)
-    simulate(model, Control(LAWS["free"], np.zeros(1)), state, dt, 0.2, 1e-3)
-    fe = current_tension(model, state.pos, state.vel)
+    simulate(model, free(), state, dt, Schedule(0.2, 1e-3))
+    fe = current_tension(model, state.node_pos, state.node_vel)
     ref = quadquad_line_tensions(mesh, omega, RHO * A)
     assert np.max(np.abs(fe - ref)) < 1e-3 * ref.max()
     assert ref.min() > 0

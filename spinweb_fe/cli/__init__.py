@@ -17,7 +17,7 @@ from spinweb_fe import __version__
 from spinweb_fe.errors import InputError, RunError
 
 COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "info", "render", "sweep")
-log = logging.getLogger("spinweb")
+log = logging.getLogger(__name__)
 
 
 class _Parser(argparse.ArgumentParser):

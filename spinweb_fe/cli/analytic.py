@@ -30,7 +30,7 @@ def add_parser(sub):
 def run(args) -> int:
     import numpy as np
 
-    from spinweb_fe import analytic
+    from spinweb_fe.analytic import solve as analytic
 
     case = load_case(args)
     model = getattr(args, "model", "consistent")
@@ -41,7 +41,7 @@ def run(args) -> int:
     if not (0 < rtol < 1 and atol > 0):
         raise InputError("--rtol/--atol", "", "tolerances must be positive (rtol < 1)")
     try:
-        result = analytic.run_case(case, model=model, rtol=rtol, atol=atol, L0=L0,
+        result = analytic.solve_case(case, model=model, rtol=rtol, atol=atol, L0=L0,
                                    tether_mass=not getattr(args, "massless_tethers", False))
     except ValueError as exc:
         raise InputError(args.case, "", str(exc)) from None

@@ -13,8 +13,8 @@ def summary(path) -> str:
     """Multi-line text summary of a result file."""
     import numpy as np
 
-    from spinweb_fe.results import open_h5
-    from spinweb_fe.solver import energy_balance
+    from spinweb_fe.io.h5 import open_h5
+    from spinweb_fe.record.energy import energy_balance
 
     path = Path(path)
     with open_h5(path) as h5:

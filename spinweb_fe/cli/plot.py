@@ -12,7 +12,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from spinweb_fe.plot import four_panel
+    from spinweb_fe.post.plot import four_panel
 
     four_panel(args.results, args.output, arm=args.arm, title=args.title)
     return 0

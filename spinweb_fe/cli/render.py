@@ -38,7 +38,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from spinweb_fe.render import render
+    from spinweb_fe.post.render import render
 
     render(args.result, args.output, frame=args.frame, time=args.time, fps=args.fps,
            size=_size(args.size), renderer=args.renderer)

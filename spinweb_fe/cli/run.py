@@ -11,7 +11,7 @@ import math
 from spinweb_fe.cli.common import load_case, out_dir
 from spinweb_fe.errors import InputError
 
-log = logging.getLogger("spinweb")
+log = logging.getLogger(__name__)
 
 
 def add_parser(sub):
@@ -48,18 +48,18 @@ def run(args) -> int:
         if args.case is not None or args.output is not None:
             raise InputError("--restart", "", "give either CASE [-o DIR] or --restart DIR, "
                              "not both (the case and the folder come from the checkpoint)")
-        from spinweb_fe.checkpoint import restart_case
+        from spinweb_fe.run.restart import restart_case
 
         res = restart_case(restart, args.sets, progress=not args.no_progress,
                            checkpoint_dt=ck_dt, threads=threads)
         log.info("continued %s to t = %.6g s (%d more history rows, %d frames)",
-                 restart, res.state.time, len(res.history["time"]), res.frames)
+                 restart, float(res.state.time[0]), len(res.history["time"]), res.frames)
         return 0
     if args.case is None:
         raise InputError("spinweb run", "", "a case file is required (or --restart DIR)")
     case = load_case(args)
     directory = out_dir(args, case)
-    from spinweb_fe.solver import run_case
+    from spinweb_fe.run.driver import run_case
 
     res = run_case(case, directory, progress=not args.no_progress, checkpoint_dt=ck_dt or 0.0,
                    threads=threads)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from spinweb_fe.errors import InputError
 
-log = logging.getLogger("spinweb")
+log = logging.getLogger(__name__)
 
 
 def add_parser(sub):
@@ -40,8 +40,8 @@ def _fmt(v):
 
 
 def run(args) -> int:
-    from spinweb_fe import sweep as sw
-    from spinweb_fe import sweep_report
+    from spinweb_fe.sweep import report as sweep_report
+    from spinweb_fe.sweep import run as sw
 
     if args.workers < 1:
         raise InputError("--workers", "", f"must be >= 1, got {args.workers}")

@@ -1,8 +1,8 @@
 """Case files: TOML -> validated, frozen dataclasses.
 
-All defaults live in ``SCHEMA`` below and nowhere else. Every physical value is in SI
-units. Unknown keys and missing required keys raise :class:`InputError` naming the
-file, the dotted key and the reason (the CLI turns that into exit code 2).
+All defaults live in :data:`spinweb_fe.case.schema.SCHEMA` and nowhere else. Every physical
+value is in SI units. Unknown keys and missing required keys raise :class:`InputError`
+naming the file, the dotted key and the reason (the CLI turns that into exit code 2).
 """
 
 from __future__ import annotations
@@ -15,103 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from meshgen.registry import TETHER_FOLDS, WEB_FOLDS, area_from_areal_density
+from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, REQUIRED,
+                                    SCHEMA, TOP_KEYS, Field)
 from spinweb_fe.errors import InputError
-
-REQUIRED = object()  # marker: the key has no default
-
-TOPOLOGIES = ("quadquad", "tritri", "trihex", "triquad", "quadtri", "quadhex")
-WEB_FOLDS = ("star", "flat")
-TETHER_FOLDS = ("straight", "coiled")
-WRAPS = ("trailing", "leading")
-SPINS = ("all", "hub")
-LAWS = ("free", "torque_feedback", "spin_ramp", "constant_torque")
-MAX_ELEMENTS = 10_000_000  # cable elements of a scene (memory: about 1 kB per element)
-MAX_HISTORY_ROWS = 10_000_000  # time.end / output.history_dt
-MAX_FRAMES = 100_000  # time.end / output.frame_dt
-
-
-@dataclass(frozen=True)
-class Field:
-    """One case key: its type, default, and check.
-
-    kind: 'float' | 'int' | 'str' | 'bool'; check: 'pos' (> 0), 'nonneg' (>= 0),
-    'frac' (0 < x <= 1), a tuple of allowed strings, or None.
-    """
-
-    kind: str
-    default: Any = REQUIRED
-    check: Any = None
-    unit: str = ""
-    doc: str = ""
-
-
-F = Field
-SCHEMA: dict[str, dict[str, Field]] = {
-    "web": {
-        "topology": F("str", "quadquad", TOPOLOGIES, "", "web/mesh topology"),
-        "side": F("float", 100.0, "pos", "m", "web side S"),
-        "mesh_width": F("float", 2.5, "pos", "m", "mesh width t (cable spacing)"),
-        "elements_per_segment": F("int", 1, "pos", "", "cable elements between two mesh nodes"),
-        "areal_density": F("float", None, "pos", "kg/m^2",
-                           "if set, the cable area is derived from it (see docs/mesh.md)"),
-        "hub_cutout": F("float", None, "nonneg", "m",
-                        "half-width of the central square removed for the hub (default: "
-                        "smallest mesh line at or outside the hub radius)"),
-    },
-    "tethers": {
-        "count": F("int", 4, "pos", "", "number of radial tethers n"),
-        "length": F("float", 50.0, "pos", "m", "tether length H"),
-        "elements": F("int", 50, "pos", "", "elements per tether"),
-    },
-    "cable": {
-        "youngs_modulus": F("float", 180e9, "pos", "Pa", "Young's modulus E"),
-        "density": F("float", 1540.0, "pos", "kg/m^3", "cable density rho"),
-        "area": F("float", 1.025e-5, "pos", "m^2", "cross-section area A"),
-        "damping_ratio": F("float", 0.0, "nonneg", "", "axial damping, fraction of critical"),
-    },
-    "tip_mass": {
-        "mass": F("float", 10.0, "nonneg", "kg", "point mass at each web corner / tether tip"),
-    },
-    "hub": {
-        "radius": F("float", 6.3, "pos", "m", "hub radius r0"),
-        "mass": F("float", 100.0, "pos", "kg", "hub mass"),
-        "inertia": F("float", None, "pos", "kg m^2", "hub inertia (default mass*radius^2)"),
-        "friction": F("float", 0.0, "nonneg", "", "Coulomb coefficient of cable-hub contact"),
-    },
-    "fold": {
-        "pattern": F("str", None, WEB_FOLDS + TETHER_FOLDS, "",
-                     "web: star | flat; tethers: straight | coiled (default star / coiled)"),
-        "wrap": F("str", "trailing", WRAPS, "", "coil direction relative to the spin"),
-        "ties": F("str", "frame", ("frame", "axes"), "", "hub attachment of the star-folded web: the whole hole boundary (frame) or the 4 axis nodes (axes)"),
-    },
-    "initial": {
-        "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),
-        "spin": F("str", "all", SPINS, "", "all: hub and web spin; hub: only the hub"),
-    },
-    "control": {
-        "law": F("str", "free", LAWS, "", "hub torque law"),
-        "M0": F("float", None, "finite", "N m", "torque_feedback: M = M0 (1 - omega/omega0)"),
-        "omega0": F("float", None, "nonzero", "rad/s", "torque_feedback reference rate"),
-        "omega_max": F("float", None, "finite", "rad/s", "spin_ramp final rate"),
-        "ramp_time": F("float", None, "pos", "s", "spin_ramp duration"),
-        "torque": F("float", None, "finite", "N m", "constant_torque value"),
-    },
-    "time": {
-        "end": F("float", REQUIRED, "pos", "s", "end time"),
-        "cfl": F("float", 0.2, "frac", "",
-                 "fraction of the critical step L0/c (0.2: see docs/stability.md)"),
-        "dt": F("float", None, "pos", "s", "optional cap on the time step"),
-    },
-    "output": {
-        "history_dt": F("float", 1e-3, "pos", "s", "interval of scalar histories"),
-        "frame_dt": F("float", 0.05, "nonneg", "s", "interval of VTU frames (0 = none)"),
-        "directory": F("str", None, None, "", "result folder, relative to the case file"),
-    },
-}
-TOP_KEYS = {"title": F("str", "", None, "", "free text")}
-LAW_KEYS = {"free": (), "torque_feedback": ("M0", "omega0"),
-            "spin_ramp": ("omega_max", "ramp_time"), "constant_torque": ("torque",)}
-
+from spinweb_fe.fe.control import LAWS
 
 def _table_class(name, fields):
     cls = dataclasses.make_dataclass(
@@ -170,13 +78,6 @@ class Case:
     def to_toml(self) -> str:
         return dumps_toml(self.to_dict())
 
-    def with_updates(self, **tables) -> "Case":
-        """A copy with some tables replaced by dicts of overrides (validated again)."""
-        raw = self.to_dict()
-        for name, upd in tables.items():
-            raw.setdefault(name, {}).update(upd)
-        return validate(raw, self.source)
-
 
 def _fmt(v):
     if isinstance(v, bool):
@@ -202,7 +103,7 @@ def _suggest(key, valid):
     return f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(sorted(valid))})"
 
 
-def _coerce(src, dotted, field, value):
+def _coerce(src, dotted, field: Field, value):
     kind = field.kind
     if kind == "float":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -291,9 +192,9 @@ def _cross_check(src, scene, raw, t):
             raise InputError(src, "hub.inertia", f"the default mass * radius^2 = "
                              f"{hub['inertia']:g} kg m^2 is not a usable number; give it")
     law = t["control"]["law"]
-    for key in LAW_KEYS[law]:
-        if t["control"][key] is None:
-            raise InputError(src, f"control.{key}", f"required by control.law = '{law}'")
+    for key in LAWS[law].keys:
+        if t["control"][key.name] is None:
+            raise InputError(src, f"control.{key.name}", f"required by control.law = '{law}'")
     if scene == "web":
         web = t["web"]
         if web["mesh_width"] > web["side"] / 2:
@@ -306,7 +207,6 @@ def _cross_check(src, scene, raw, t):
             raise InputError(src, "hub.radius",
                              f"hub radius {hub['radius']} m does not fit in a web of side {web['side']} m")
         if web["areal_density"] is not None:
-            from meshgen.flat import area_from_areal_density
             area = area_from_areal_density(
                 web["topology"], web["areal_density"], web["mesh_width"], t["cable"]["density"])
             given = raw.get("cable", {}).get("area")

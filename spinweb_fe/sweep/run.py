@@ -40,10 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.case import validate
+from spinweb_fe.case.load import validate
 from spinweb_fe.errors import InputError, RunError
 
-log = logging.getLogger("spinweb")
+log = logging.getLogger(__name__)
 
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
@@ -160,7 +160,7 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
         Unknown keys, a missing base case, empty grid lists, a key both in [grid] and
         [[runs]], or any run whose case does not validate (named by index and key).
     """
-    from spinweb_fe.case import parse_set
+    from spinweb_fe.case.load import parse_set
 
     src = Path(path)
     doc = _read_toml(src, "sweep file")
@@ -258,8 +258,8 @@ def fe_metrics(path) -> dict:
     """:func:`history_metrics` of an FE ``results.h5`` (deployed lengths from ``/mesh``)."""
     import h5py
 
-    from spinweb_fe.arms import deployed_length
-    from spinweb_fe.io_mesh import read_mesh_group
+    from spinweb_fe.io.mesh import read_mesh_group
+    from spinweb_fe.record.arms import deployed_length
 
     with h5py.File(path, "r") as h5:
         free = deployed_length(read_mesh_group(h5["mesh"]))
@@ -278,7 +278,7 @@ def run_one(task: dict) -> dict:
     t0 = time.perf_counter()
     out = Path(task["out_dir"])
     out.mkdir(parents=True, exist_ok=True)
-    spin_log = logging.getLogger("spinweb")
+    spin_log = logging.getLogger("spinweb_fe")  # the package: every module logs under it
     handler = logging.FileHandler(out / "run.log", mode="w")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
     saved = spin_log.propagate, spin_log.level
@@ -287,14 +287,14 @@ def run_one(task: dict) -> dict:
     try:
         case = validate(task["raw"], task["source"])
         if task["mode"] == "fe":
-            from spinweb_fe.solver import run_case
+            from spinweb_fe.run.driver import run_case
 
             run_case(case, out, progress=False)
             metrics = fe_metrics(out / "results.h5")
         else:
-            from spinweb_fe import analytic
+            from spinweb_fe.analytic import solve as analytic
 
-            res = analytic.run_case(case, model=task["model"])
+            res = analytic.solve_case(case, model=task["model"])
             analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
             if res.stopped:
                 raise RunError(res.stopped, time=float(res.history["time"][-1]))

@@ -1,11 +1,13 @@
-"""The paper's analytical deployment model (Eqs. 4-8): case mapping, control laws, integration.
+"""The paper's analytical deployment model (Eqs. 4-8): case mapping and integration.
 
 :func:`params_from_case` maps a tether or web scene to :class:`ArmParams`;
-:func:`simulate` integrates the model with ``scipy.integrate.solve_ivp`` (DOP853, tight
+:func:`integrate` integrates the model with ``scipy.integrate.solve_ivp`` (DOP853, tight
 tolerances), switching exactly between the coiled and pivoting regimes at the events
-phi = +-pi/2, and samples the ``/history`` datasets of :mod:`spinweb_fe.results` every
-``history_dt``. :func:`run_case` does both for a case. Equations: :mod:`analytic_models`,
-derivation and start-up treatment: docs/analytic.md.
+phi = +-pi/2, and samples the ``/history`` datasets of :mod:`spinweb_fe.record.history`
+every ``history_dt``. :func:`solve_case` does both for a case. The control laws are those
+of the solver's registry (:mod:`spinweb_fe.fe.control`), by their analytical forms.
+Equations: :mod:`spinweb_fe.analytic.models`; derivation and start-up treatment:
+docs/analytic.md.
 """
 
 from __future__ import annotations
@@ -17,8 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from spinweb_fe.analytic_models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
+from meshgen.registry import TOPOLOGIES, cable_length_per_area
+from spinweb_fe.analytic.models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
                                         root_tension, tip_rate)
+from spinweb_fe.case.scene import control_from_case
+from spinweb_fe.fe.control import Control
 
 log = logging.getLogger(__name__)
 
@@ -28,54 +33,19 @@ L0_FRACTION = 1e-4
 MAX_SEGMENTS = 100_000
 
 
-@dataclass(frozen=True)
-class Control:
-    """Hub control law (see CONTRACT.md).
+def _torque(control: Control, t: float, omega: float) -> float:
+    """Applied torque [N m] of a torque law (the law's analytical form)."""
+    return control.law.torque(control.params, t, omega)
 
-    Parameters
-    ----------
-    law : {'free', 'torque_feedback', 'spin_ramp', 'constant_torque'}
-    M0, omega0 : float [N m], [rad/s]
-        torque_feedback: M = M0 (1 - omega/omega0).
-    omega_max, ramp_time : float [rad/s], [s]
-        spin_ramp: omega = omega_max t/ramp_time, then omega_max (the torque is computed).
-    torque : float [N m]
-        constant_torque value.
-    """
 
-    law: str = "free"
-    M0: float = 0.0
-    omega0: float = 1.0
-    omega_max: float = 0.0
-    ramp_time: float = 1.0
-    torque: float = 0.0
+def _rate(control: Control, t: float) -> tuple[float, float]:
+    """Prescribed (omega [rad/s], omega_dot [rad/s^2]) of a rate law at time t."""
+    return control.law.rate(control.params, t)
 
-    @property
-    def prescribed(self) -> bool:
-        """True when the hub rate is prescribed (spin_ramp)."""
-        return self.law == "spin_ramp"
 
-    def hub_torque(self, omega: float) -> float:
-        """Applied torque [N m] for the torque laws."""
-        if self.law == "free":
-            return 0.0
-        if self.law == "torque_feedback":
-            return self.M0 * (1.0 - omega / self.omega0)
-        if self.law == "constant_torque":
-            return self.torque
-        raise ValueError(f"law '{self.law}' prescribes the hub rate, not the torque")
-
-    def hub_rate(self, t: float) -> tuple[float, float]:
-        """spin_ramp: prescribed (omega [rad/s], omega_dot [rad/s^2]) at time t."""
-        if t < self.ramp_time:
-            return self.omega_max * t / self.ramp_time, self.omega_max / self.ramp_time
-        return self.omega_max, 0.0
-
-    def breaks(self, t_end: float) -> list[float]:
-        """Times at which the right-hand side is discontinuous (integration restarts there)."""
-        if self.prescribed and self.ramp_time < t_end:
-            return [self.ramp_time]
-        return []
+def _breaks(control: Control, t_end: float) -> list[float]:
+    """Times at which the right-hand side is discontinuous (integration restarts there)."""
+    return [b for b in control.law.breaks(control.params) if b < t_end]
 
 
 @dataclass
@@ -106,28 +76,18 @@ def params_from_case(case, tether_mass: bool = True) -> ArmParams:
         m_uni = case.cable.density * case.cable.area * t.length if tether_mass else 0.0
         return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
                          m_tip=case.tip_mass.mass, m_uni=m_uni)
-    from meshgen.flat import LENGTH_PER_AREA_T, MESH_TYPE
     w = case.web
     rho_a = w.areal_density
     if rho_a is None:
-        rho_a = (case.cable.density * case.cable.area
-                 * LENGTH_PER_AREA_T[MESH_TYPE[w.topology]] / w.mesh_width)
-    if w.topology.startswith("tri"):
-        n, area = 3, math.sqrt(3.0) / 4.0 * w.side ** 2
-    else:
-        n, area = 4, w.side ** 2
+        rho_a = case.cable.density * case.cable.area * cable_length_per_area(w.topology,
+                                                                             w.mesh_width)
+    n = TOPOLOGIES[w.topology].corners
+    area = math.sqrt(3.0) / 4.0 * w.side ** 2 if n == 3 else w.side ** 2
     return ArmParams(n=n, H=0.5 * w.side, r0=hub.radius, J_hub=hub.inertia,
                      m_tip=case.tip_mass.mass, m_lin=rho_a * area / n)
 
 
-def control_from_case(case) -> Control:
-    """The case's [control] table as a :class:`Control`."""
-    c = case.control
-    vals = {k: getattr(c, k) for k in ("M0", "omega0", "omega_max", "ramp_time", "torque")}
-    return Control(law=c.law, **{k: v for k, v in vals.items() if v is not None})
-
-
-def initial_state(p: ArmParams, control: Control, coiled: bool, wrap: str, omega_init: float,
+def start_state(p: ArmParams, control: Control, coiled: bool, wrap: str, omega_init: float,
                   spin: str, L0: float | None = None, model: str = "consistent"):
     """Start state (phi, omega, Psi, regime).
 
@@ -148,8 +108,8 @@ def initial_state(p: ArmParams, control: Control, coiled: bool, wrap: str, omega
         phi0, regime = sign * (HALF_PI + (p.H - L0) / p.r0), "captured"
     else:
         phi0, regime = 0.0, "pivoting"
-    if control.prescribed:
-        omega = control.hub_rate(0.0)[0]
+    if control.law.prescribes_rate:
+        omega = _rate(control, 0.0)[0]
         return phi0, omega, omega, regime
     if spin == "all":
         return phi0, omega_init, omega_init, regime
@@ -171,14 +131,14 @@ def _accel(model, p, control, regime, t, phi, omega, psi):
     coiled = regime != "pivoting"
     if regime == "captured":
         J = _captured_inertia(model, p, p.H - p.r0 * (abs(phi) - HALF_PI))
-        if control.prescribed:
-            wd = control.hub_rate(t)[1]
+        if control.law.prescribes_rate:
+            wd = _rate(control, t)[1]
             return wd, wd, J * wd
-        M = control.hub_torque(omega)
+        M = _torque(control, t, omega)
         return M / J, M / J, M
-    if control.prescribed:
-        return accelerations(model, p, phi, omega, psi, coiled, omega_dot=control.hub_rate(t)[1])
-    return accelerations(model, p, phi, omega, psi, coiled, torque=control.hub_torque(omega))
+    if control.law.prescribes_rate:
+        return accelerations(model, p, phi, omega, psi, coiled, omega_dot=_rate(control, t)[1])
+    return accelerations(model, p, phi, omega, psi, coiled, torque=_torque(control, t, omega))
 
 
 def _release(model, p, control, t, y):
@@ -223,7 +183,7 @@ def _events(model, p, control, regime, phi_now, L_min):
     return [up, down]
 
 
-def simulate(p: ArmParams, control: Control, *, model: str = "consistent", t_end: float,
+def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_end: float,
              history_dt: float, coiled: bool = True, wrap: str = "trailing",
              omega_init: float = 8 * math.pi, spin: str = "all", L0: float | None = None,
              rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853") -> AnalyticResult:
@@ -261,19 +221,22 @@ def simulate(p: ArmParams, control: Control, *, model: str = "consistent", t_end
     """
     if model not in MODELS:
         raise ValueError(f"unknown model '{model}' (valid: {', '.join(MODELS)})")
-    phi0, omega0, psi0, regime = initial_state(p, control, coiled, wrap, omega_init, spin, L0,
-                                                 model)
+    phi0, omega0, psi0, regime = start_state(p, control, coiled, wrap, omega_init, spin, L0,
+                                             model)
     L_start = p.H - p.r0 * max(0.0, abs(phi0) - HALF_PI)
     L_min = 0.5 * L_start
-    E_init = 0.5 * (p.J_hub if spin == "hub" and coiled and not control.prescribed
+    prescribed = control.law.prescribes_rate
+    E_init = 0.5 * (p.J_hub if spin == "hub" and coiled and not prescribed
                     else 0.0) * omega_init ** 2
     E0, K0 = invariants(p, phi0, omega0, psi0, regime != "pivoting")
-    w_scale = max(abs(omega_init), abs(control.omega_max), 1.0)
+    w_law = (max(abs(_rate(control, t)[0]) for t in _breaks(control, math.inf) + [t_end])
+             if prescribed else 0.0)
+    w_scale = max(abs(omega_init), w_law, 1.0)
     atol_v = np.array([atol, atol, atol * w_scale, atol * w_scale,
                        atol * max(E0, p.J0 * w_scale ** 2), atol * max(abs(K0), p.J0 * w_scale)])
     y = np.array([0.0, phi0, omega0, psi0, 0.0, 0.0])
     t, segments, switches, stopped, lost = 0.0, [], [], "", 0.0
-    stops = control.breaks(t_end) + [t_end]
+    stops = _breaks(control, t_end) + [t_end]
     while t < t_end and not stopped:
         if len(segments) > MAX_SEGMENTS:
             stopped = f"more than {MAX_SEGMENTS} regime switches by t = {t:.6g} s (chattering)"
@@ -361,25 +324,27 @@ def drifts(result: AnalyticResult) -> tuple[np.ndarray, np.ndarray]:
     return (K - K0 - imp) / k_scale, (E + lost - E0 - h["torque_work"]) / e_scale
 
 
-def run_case(case, model: str = "consistent", tether_mass: bool = True,
-             L0: float | None = None, rtol: float = 1e-10, atol: float = 1e-10) -> AnalyticResult:
+def solve_case(case, model: str = "consistent", tether_mass: bool = True,
+               L0: float | None = None, rtol: float = 1e-10, atol: float = 1e-10) -> AnalyticResult:
     """Map a case, integrate the chosen model to ``time.end`` and return the result."""
     p = params_from_case(case, tether_mass=tether_mass)
-    if case.control.law == "spin_ramp" and case.initial.omega != 0.0:
-        log.info("spin_ramp starts from omega = 0: initial.omega = %g is not used",
-                 case.initial.omega)
+    control = control_from_case(case)
+    if control.law.prescribes_rate and case.initial.omega != _rate(control, 0.0)[0]:
+        log.info("%s starts from its own rate at t = 0: initial.omega = %g is not used",
+                 control.law.name, case.initial.omega)
     coiled = case.fold.pattern in ("star", "coiled")
-    return simulate(p, control_from_case(case), model=model, t_end=case.time.end,
-                    history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
-                    omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
-                    rtol=rtol, atol=atol)
+    return integrate(p, control, model=model, t_end=case.time.end,
+                     history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
+                     omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
+                     rtol=rtol, atol=atol)
 
 
 def write(path, case, result: AnalyticResult, rtol: float, atol: float):
     """Write ``analytic.h5``: root attributes (model, tolerances, ...) and ``/history``."""
     import h5py
 
-    from spinweb_fe.results import write_history, write_root_attrs
+    from spinweb_fe.io.h5 import write_history, write_root_attrs
+
     p = result.params
     with h5py.File(path, "w") as h5:
         write_root_attrs(h5, case, model=result.model, rtol=rtol, atol=atol,

@@ -91,9 +91,16 @@ class ArmTracker:
     ----------
     mesh : Mesh
     r0 : float [m]   hub radius (0: no hub, nothing is ever wound)
+    contact_tol : float
+        Smallest relative radius tolerance of "on the hub" (it grows with the spine spacing).
+
+    The tracker's memory from row to row is the previous arm angle and whether the arm was
+    wound (:meth:`memory`, :meth:`restore`: a restarted run continues it).
     """
 
-    def __init__(self, mesh, r0):
+    name = "arms"
+
+    def __init__(self, mesh, r0, contact_tol=CONTACT_TOL):
         self.probes, self.s_arm, self.s_lev, self.s_coord = arm_probes(mesh)
         tips = mesh.node_sets["tips"]
         self.n = len(tips)
@@ -110,7 +117,16 @@ class ArmTracker:
         self.gap = float(max(gaps)) if gaps else 0.0
         # "on the hub": a spinning coil of straight elements of length g lifts off the rim by
         # about r0 (g/r0)^2 / 24, so the tolerance grows with the spine spacing
-        self.tol = max(CONTACT_TOL, (self.gap / self.r0) ** 2 / 12) if self.r0 > 0 else 0.0
+        self.tol = max(contact_tol, (self.gap / self.r0) ** 2 / 12) if self.r0 > 0 else 0.0
+
+    def memory(self) -> dict:
+        """What the measure carries from row to row (copies)."""
+        return {"prev_phi": self.prev_phi.copy(), "prev_wound": self.prev_wound.copy()}
+
+    def restore(self, memory: dict) -> None:
+        """Continue from :meth:`memory` of an earlier run (same mesh)."""
+        self.prev_phi = np.array(memory["prev_phi"], dtype=float)
+        self.prev_wound = np.array(memory["prev_wound"], dtype=bool)
 
     def update(self, probe_pos, probe_vel, hub_angle):
         """(T, p, 3) probe positions / velocities and (T,) hub angle -> (L, phi, omega_tip),

@@ -4,7 +4,6 @@ and the ParaView collection ``web.pvd`` + ``frames/web_NNNNNN.vtu`` (valid after
 
 from __future__ import annotations
 
-import os
 import time
 import uuid
 from pathlib import Path
@@ -12,58 +11,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from spinweb_fe.checkpoint import CHECKPOINT_NAME
-from spinweb_fe.errors import InputError
-from spinweb_fe.io_mesh import write_mesh_group, write_vtu
-from spinweb_fe.results import HISTORY_DOC, HISTORY_UNITS, write_root_attrs
+from spinweb_fe.io.checkpoint import CHECKPOINT_NAME
+from spinweb_fe.io.h5 import write_root_attrs
+from spinweb_fe.io.mesh import write_mesh_group
+from spinweb_fe.io.vtk import write_pvd, write_vtu
+from spinweb_fe.record.history import COLUMNS
+from spinweb_fe.record.recorders import Recorder
 
 
-def write_pvd(path: Path, entries):
-    """Write a PVD collection atomically (temp file + rename). entries: [(time, relative file)]."""
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    lines += [f'    <DataSet timestep="{t:.9g}" group="" part="0" file="{f}"/>' for t, f in entries]
-    lines += ["  </Collection>", "</VTKFile>", ""]
-    tmp = path.with_suffix(".pvd.tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, path)
-
-
-def check_results_for_restart(out_dir, ck):
-    """Check (read-only) that ``out_dir/results.h5`` can be continued from checkpoint ``ck``.
-
-    Raises
-    ------
-    InputError
-        If the file is missing or unreadable, belongs to another run (``run_id``), or holds
-        fewer history rows or frames than the checkpoint counts, or another time step.
-    """
-    path = Path(out_dir) / "results.h5"
-    if not path.is_file():
-        raise InputError(path, "", "no such file: nothing to continue")
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(path, "", f"not a readable HDF5 file ({exc})") from None
-    with h5:
-        if h5.attrs.get("run_id") != ck.run_id:
-            raise InputError(path, "run_id", "the results are not those of the checkpoint's run")
-        if float(h5.attrs.get("dt", float("nan"))) != ck.dt:
-            raise InputError(path, "dt", f"differs from the checkpoint's dt = {ck.dt!r} s")
-        rows = {name: ds.shape[0] for name, ds in h5.get("history", {}).items()}
-        short = [name for name, k in rows.items() if k < ck.history_rows]
-        if ck.history_rows and (short or not rows):
-            raise InputError(path, "history", f"holds fewer rows than the checkpoint's "
-                             f"{ck.history_rows}: results and checkpoint do not belong together")
-        n_frames = h5["frames/time"].shape[0] if "frames/time" in h5 else 0
-        if n_frames < ck.frames:
-            raise InputError(path, "frames", f"holds {n_frames} frames, the checkpoint "
-                             f"counts {ck.frames}")
-
-
-class ResultWriter:
-    """Owns results.h5 and the ParaView collection of one run.
+class ResultWriter(Recorder):
+    """Owns results.h5 and the ParaView collection of one run (a recorder of the loop).
 
     Histories are appended in chunks (resizable datasets) and flushed, so a run that stops
     early leaves a readable file with everything recorded so far.
@@ -93,7 +50,7 @@ class ResultWriter:
         self.t0 = time.perf_counter()
         self.frames = None
         self.pvd_entries = []
-        self.rows = 0
+        self.n_rows = 0
         if resume is not None:
             self._reopen(case, resume, write_frames)
             return
@@ -103,7 +60,7 @@ class ResultWriter:
         self.run_id = uuid.uuid4().hex
         write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
                          dt_critical=model.dt_critical, status="running", run_id=self.run_id)
-        write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.node_mass)
+        write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.nodes.mass)
         self.hist = self.h5.create_group("history")
         if write_frames:
             (self.dir / "frames").mkdir(exist_ok=True)
@@ -123,7 +80,7 @@ class ResultWriter:
         self.hist = self.h5.require_group("history")
         for ds in self.hist.values():
             ds.resize(ck.history_rows, axis=0)
-        self.rows = ck.history_rows
+        self.n_rows = ck.history_rows
         if write_frames and "frames" in self.h5:
             self.frames = self.h5["frames"]
             for ds in self.frames.values():
@@ -151,24 +108,24 @@ class ResultWriter:
             ds.attrs["description"] = doc
         return ds
 
-    def append_history(self, rows: dict):
+    def rows(self, rows: dict):
         """Append rows: name -> (T,) or (T, n_arms) arrays."""
         for name, arr in rows.items():
             arr = np.asarray(arr, dtype=np.float64)
             if name not in self.hist:
-                self._new(self.hist, name, (0,) + arr.shape[1:], HISTORY_UNITS[name],
-                          HISTORY_DOC.get(name))
+                self._new(self.hist, name, (0,) + arr.shape[1:], *COLUMNS[name])
             ds = self.hist[name]
             k = ds.shape[0]
             ds.resize(k + len(arr), axis=0)
             ds[k:] = arr
-        self.rows += len(rows["time"]) if "time" in rows else 0
+        self.n_rows += len(rows["time"]) if "time" in rows else 0
         self.h5.flush()
 
-    def write_frame(self, t, pos, vel, tension):
+    def frame(self, frame):
         """One VTU frame, one /frames row, then the PVD rewritten atomically."""
         if self.frames is None:
             return
+        t, pos, vel, tension = frame
         mesh = self.model.mesh
         k = len(self.pvd_entries)
         rel = f"frames/web_{k:06d}.vtu"
@@ -177,7 +134,7 @@ class ResultWriter:
         strain = np.where(rest > 0, (length - rest) / np.where(rest > 0, rest, 1.0), 0.0)
         write_vtu(self.dir / rel, pos, mesh.elem_nodes,
                   point_data={"velocity": vel, "displacement": pos - mesh.node_ref,
-                              "node_mass": self.model.node_mass},
+                              "node_mass": self.model.nodes.mass},
                   cell_data={"tension": tension, "strain": strain,
                              "slack": (tension <= 0).astype(np.int8)})
         for name, val in (("time", t), ("position", pos), ("tension", tension)):

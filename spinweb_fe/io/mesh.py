@@ -1,6 +1,6 @@
-"""Mesh I/O: the ``/mesh`` group of result files (HDF5) and VTU line meshes (meshio).
+"""Mesh files: the ``/mesh`` group of result files (HDF5) and the ``spinweb mesh`` files.
 
-``/mesh`` layout (CONTRACT.md; every dataset has a ``units`` attribute):
+``/mesh`` layout (docs/interface.md; every dataset has a ``units`` attribute):
 ``points (N,3)`` initial positions, ``reference_points (N,3)`` flat deployed positions,
 ``elements (E,2)``, ``rest_length (E,)``, ``node_mass (N,)`` (cable + point masses, hub
 excluded), ``node_point_mass (N,)``, ``node_sets/<name>``, ``elem_sets/<name>``,
@@ -11,15 +11,14 @@ leading, 0 none).
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
-import meshio
+import h5py
 import numpy as np
 
 from meshgen.mesh import Mesh
-from spinweb_fe.results import write_dataset
+from spinweb_fe.io.h5 import write_dataset, write_root_attrs
+from spinweb_fe.io.vtk import write_vtu
 
 _DATASETS = (  # (dataset name, Mesh field, units, description)
     ("points", "node_pos", "m", "initial node positions"),
@@ -70,30 +69,30 @@ def read_mesh_group(h5group) -> Mesh:
     return Mesh(**kw)
 
 
-def write_vtu(path, points, elements, point_data=None, cell_data=None):
-    """Write a line mesh as VTU, atomically (temporary file in the same folder + rename).
+def write_mesh_files(case, mesh: Mesh, node_mass: np.ndarray, folder) -> list:
+    """Write ``mesh.h5`` (root attributes + ``/mesh``), ``mesh_folded.vtu`` and
+    ``mesh_flat.vtu`` into ``folder``.
 
-    Parameters
-    ----------
-    path : str or Path
-        Target ``.vtu`` file.
-    points : (n, 3) float64 [m]
-    elements : (m, 2) int
-        Line cells.
-    point_data : dict str -> (n,) or (n, d) array, optional
-    cell_data : dict str -> (m,) or (m, d) array, optional
+    Point data: ``node_mass`` [kg], ``arm`` [-], ``arm_coord`` [m]; cell data:
+    ``rest_length`` [m], ``strain`` [-] (current length / rest length - 1).
+
+    Returns
+    -------
+    list of Path
+        The three files written.
     """
-    path = Path(path)
-    mesh = meshio.Mesh(np.ascontiguousarray(points, np.float64),
-                       [("line", np.ascontiguousarray(elements, np.int64))],
-                       point_data=dict(point_data or {}),
-                       cell_data={k: [np.asarray(v)] for k, v in (cell_data or {}).items()})
-    fd, tmp = tempfile.mkstemp(suffix=".vtu", prefix=f".{path.stem}.", dir=path.parent)
-    os.close(fd)
-    try:
-        meshio.write(tmp, mesh, file_format="vtu")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    h5_path = folder / "mesh.h5"
+    with h5py.File(h5_path, "w") as h5:
+        write_root_attrs(h5, case)
+        write_mesh_group(h5.create_group("mesh"), mesh, node_mass)
+    point_data = {"node_mass": node_mass, "arm": mesh.node_arm.astype(np.int32),
+                  "arm_coord": mesh.node_arm_coord}
+    paths = [h5_path]
+    for name, pos in (("mesh_folded.vtu", mesh.node_pos), ("mesh_flat.vtu", mesh.node_ref)):
+        strain = mesh.elem_length(pos) / mesh.elem_rest_len - 1.0
+        write_vtu(folder / name, pos, mesh.elem_nodes, point_data,
+                  {"rest_length": mesh.elem_rest_len, "strain": strain})
+        paths.append(folder / name)
+    return paths

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.sweep import METRICS, PLOTTED, Sweep
+from spinweb_fe.sweep.run import METRICS, PLOTTED, Sweep
 
 
 def table(sweep: Sweep, rows) -> tuple[list, list]:
@@ -84,7 +84,7 @@ def _series_keys(sweep: Sweep):
 
 def _key_unit(key: str) -> str:
     """SI unit of a dotted case key ('initial.omega' -> 'rad/s'; '' if none or unknown)."""
-    from spinweb_fe.case import SCHEMA
+    from spinweb_fe.case.schema import SCHEMA
 
     table, _, name = key.partition(".")
     field = SCHEMA.get(table, {}).get(name)

@@ -1,52 +1,20 @@
-"""Result files (HDF5): root attributes and the ``/history`` layout shared by FE and analytic runs.
+"""HDF5 helpers of the result files: root attributes, datasets with units, ``/history``.
 
-Every dataset carries a ``units`` attribute (SI). See CONTRACT.md and docs/results.md.
+Every dataset carries a ``units`` attribute (SI); the history columns are those of
+:mod:`spinweb_fe.record.history` (docs/results.md, docs/interface.md).
 """
 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import h5py
 import numpy as np
 
 from spinweb_fe import FORMAT_VERSION, __version__
-
-HISTORY_UNITS = {
-    "time": "s",
-    "hub_angle": "rad",
-    "hub_omega": "rad/s",
-    "hub_torque": "N m",
-    "kinetic_energy": "J",
-    "strain_energy": "J",
-    "torque_work": "J",
-    "damping_dissipation": "J",
-    "contact_dissipation": "J",
-    "angular_momentum": "N m s",
-    "max_tension": "N",
-    "arm_length": "m",
-    "arm_angle": "rad",
-    "tip_omega": "rad/s",
-}
-
-HISTORY_DOC = {
-    "time": "simulated time",
-    "hub_angle": "hub rotation angle about +z (counter-clockwise positive)",
-    "hub_omega": "hub angular velocity omega_centre",
-    "hub_torque": "control torque applied to the hub",
-    "kinetic_energy": "kinetic energy of everything, hub included",
-    "strain_energy": "elastic energy stored in the cables",
-    "torque_work": "work done on the hub by the control torque",
-    "damping_dissipation": "energy dissipated by axial cable damping",
-    "contact_dissipation": "energy lost in cable-hub contact (impact and friction)",
-    "angular_momentum": "angular momentum about the spin axis, hub included",
-    "max_tension": "largest cable tension",
-    "arm_length": "deployed (free) arm length L per arm, as in the analytical model",
-    "arm_angle": "arm angle phi from the radial at the root, counter-clockwise positive; "
-                 "|phi| > pi/2 while coiled (phi = -(pi/2 + wound angle) for a trailing wrap)",
-    "tip_omega": "angular velocity of the tip position about the hub axis",
-}
-
+from spinweb_fe.errors import InputError
+from spinweb_fe.record.history import COLUMNS
 
 def write_root_attrs(h5: h5py.File, case, **extra):
     """Root attributes of a result file: format, version, resolved case and extras (dt, steps...)."""
@@ -69,17 +37,18 @@ def write_dataset(group, name, data, units, doc=None, **kw):
 
 
 def write_history(h5: h5py.File, history: dict):
-    """Write ``/history`` from a dict of arrays (names from HISTORY_UNITS, others allowed with
+    """Write ``/history`` from a dict of arrays (names of record.history.COLUMNS, others with
     a ``(array, units)`` tuple)."""
     g = h5.require_group("history")
     for name, value in history.items():
         if isinstance(value, tuple):
             value, units = value
+            doc = None
         else:
-            units = HISTORY_UNITS[name]
+            units, doc = COLUMNS[name]
         if name in g:
             del g[name]
-        write_dataset(g, name, value, units, HISTORY_DOC.get(name))
+        write_dataset(g, name, value, units, doc)
     return g
 
 
@@ -91,10 +60,6 @@ def open_h5(path, missing="no such file"):
     missing : str
         The reason given when the file does not exist.
     """
-    from pathlib import Path
-
-    from spinweb_fe.errors import InputError
-
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "", missing)

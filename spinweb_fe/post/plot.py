@@ -5,11 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from spinweb_fe.errors import InputError
+from spinweb_fe.io.h5 import open_h5
+
+PANELS = (("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
+          ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]"))
 
 
 def load_for_plot(path):
-    from spinweb_fe.results import open_h5
-
+    """(history dict, label) of a result file; the label is its folder (and model)."""
     path = Path(path)
     with open_h5(path) as h5:
         if "history" not in h5:
@@ -21,15 +24,18 @@ def load_for_plot(path):
     return h, label
 
 
-def four_panel(files, out, labels=None, arm=0, title=None):
-    """Overlay the histories of several result files on the four panels and save ``out``.
+def plot_histories(curves, out, title=None, arm=0, t_max=None):
+    """Overlay histories on the four panels and save ``out``.
 
     Parameters
     ----------
-    files : list of path
-        results.h5 / analytic.h5 files.
+    curves : list of (history dict, label, matplotlib style or None)
+    out : path
+    title : str or None
     arm : int
         Which arm's L, phi and omega_tip to draw (all arms move alike in symmetric runs).
+    t_max : float or None [s]
+        Draw up to this time (default: everything).
     """
     import matplotlib
 
@@ -37,20 +43,16 @@ def four_panel(files, out, labels=None, arm=0, title=None):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    panels = [("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
-              ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]")]
-    for i, f in enumerate(files):
-        h, label = load_for_plot(f)
-        if labels:
-            label = labels[i]
+    for h, label, style in curves:
         t = h["time"]
-        for ax, (key, ylab) in zip(axes.flat, panels):
+        sel = t <= (t_max if t_max else t[-1]) + 1e-12
+        for ax, (key, ylab) in zip(axes.flat, PANELS):
             if key not in h:
                 continue
             y = h[key]
             if y.ndim == 2:
                 y = y[:, min(arm, y.shape[1] - 1)]
-            ax.plot(t, y, label=label, lw=1.2)
+            ax.plot(t[sel], y[sel], *([style] if style else []), label=label, lw=1.2)
             ax.set_ylabel(ylab)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
@@ -58,9 +60,18 @@ def four_panel(files, out, labels=None, arm=0, title=None):
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return Path(out)
+
+
+def four_panel(files, out, labels=None, arm=0, title=None):
+    """The four panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``."""
+    curves = []
+    for i, f in enumerate(files):
+        h, label = load_for_plot(f)
+        curves.append((h, labels[i] if labels else label, None))
+    return plot_histories(curves, out, title=title, arm=arm)

@@ -53,6 +53,7 @@ from scipy.sparse import csr_matrix, hstack, identity
 
 from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.errors import RunError
+from spinweb_fe.linear.assembly import equilibrium_matrix, free_dof_basis, geometric_stiffness
 
 log = logging.getLogger(__name__)
 
@@ -161,66 +162,6 @@ class PrestressReport:
         return (f"prestressable only with tailored rest lengths: cut stress-free, "
                 f"{self.elastic_n_compressed} of {self.n_bars} bars are compressed; tailored, "
                 f"tension holds for {lo:.3g} to {hi:.3g} times this omega")
-
-
-def free_dof_basis(xy, fixed_nodes, roller=None):
-    """Sparse projection P (dof, 2n) onto the free in-plane dof.
-
-    Parameters
-    ----------
-    xy : (n, 2) float64 [m]
-    fixed_nodes : int array
-        Nodes fixed in both directions.
-    roller : tuple (node, direction) or None
-        A node that may move only along the unit vector ``direction``.
-    """
-    n = len(xy)
-    fixed = set(int(i) for i in fixed_nodes)
-    rows, cols, vals = [], [], []
-    dof = 0
-    for i in range(n):
-        if roller is not None and i == roller[0]:
-            rows += [dof, dof]
-            cols += [2 * i, 2 * i + 1]
-            vals += [float(roller[1][0]), float(roller[1][1])]
-            dof += 1
-        elif i not in fixed:
-            rows += [dof, dof + 1]
-            cols += [2 * i, 2 * i + 1]
-            vals += [1.0, 1.0]
-            dof += 2
-    return csr_matrix((vals, (rows, cols)), shape=(dof, 2 * n))
-
-
-def equilibrium_matrix(xy, bars):
-    """Full equilibrium matrix (2n, b): column k holds the unit pulls of bar k on its nodes.
-
-    Sign convention: ``A t = f`` with t > 0 a tension and f the external load.
-    """
-    n = len(xy)
-    a, b = bars[:, 0], bars[:, 1]
-    d = xy[a] - xy[b]
-    e = d / np.linalg.norm(d, axis=1)[:, None]
-    A = np.zeros((2 * n, len(bars)))
-    k = np.arange(len(bars))
-    for c in range(2):
-        A[2 * a + c, k] += e[:, c]   # node a is pulled towards b: -t e balances +f
-        A[2 * b + c, k] -= e[:, c]
-    return A
-
-
-def geometric_stiffness(xy, bars, tension):
-    """(2n, 2n) geometric stiffness [N/m] of bars with the given tensions."""
-    n = len(xy)
-    d = xy[bars[:, 1]] - xy[bars[:, 0]]
-    length = np.linalg.norm(d, axis=1)
-    e = d / length[:, None]
-    g = (tension / length)[:, None, None] * (np.eye(2)[None] - e[:, :, None] * e[:, None, :])
-    K = np.zeros((n, 2, n, 2))
-    i, j = bars[:, 0], bars[:, 1]
-    for a, b, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
-        np.add.at(K, (a, slice(None), b), sign * g)
-    return K.reshape(2 * n, 2 * n)
 
 
 def _supports(mesh, xy):
@@ -351,3 +292,47 @@ def _best_selfstress(A, t0, cap):
                    bounds=[(lower, cap)] * b + [(None, None)], method="highs")
     t = (res2.x if res2.status == 0 else res.x)[:b]
     return t * scale, bool(np.any(np.abs(res.x[:b]) >= 0.999 * cap))
+
+
+def format_report(rep: PrestressReport, title: str, omega: float) -> str:
+    """The report as the lines ``spinweb prestress`` prints (``title``: what was analysed)."""
+    if rep.n_mechanisms == 0:
+        stiff = "no mechanism"
+    elif rep.mechanisms_stiffened is None:
+        stiff = "not computed (load not compatible)"
+    else:
+        stiff = ("yes" if rep.mechanisms_stiffened else
+                 f"NO: {rep.n_neutral} neutral, {rep.n_negative} negative") + (
+            f" (smallest eigenvalue {rep.stability_min:.4g} N/m)")
+    lo, hi = rep.omega_band
+    band = ("-" if not rep.prestressable else "every spin rate (statically determinate "
+            "for this load)" if lo == 0 and hi == float("inf") else
+            f"{lo * omega:.4g} < omega < {hi * omega:.4g} rad/s if the rest lengths "
+            "are tailored at this omega (members go slack outside)")
+    note = "" if rep.load_compatible else "  (least squares: not in equilibrium)"
+    lines = [
+        f"topology            {title}",
+        f"supports            {rep.supports}",
+        f"nodes               {rep.n_nodes}",
+        f"free dof            {rep.n_dof}",
+        f"bars                {rep.n_bars}",
+        f"rank                {rep.rank}",
+        f"self-stress states  {rep.n_selfstress}",
+        f"mechanisms          {rep.n_mechanisms}   (b - dof = {rep.maxwell} = s - m)",
+        f"load residual       {rep.load_residual:.3e} of |f| = {rep.load_norm:.4g} N "
+        f"(worst node {rep.node_residual_max:.3g} of its load)",
+        f"method              {rep.method}",
+        f"min member force    {rep.min_force:.6g} N{note}",
+        f"max member force    {rep.max_force:.6g} N{note}",
+        f"compressed members  {rep.n_compressed}",
+        f"elastic solution    min {rep.elastic_min_force:.6g} N, max "
+        f"{rep.elastic_max_force:.6g} N, {rep.elastic_n_compressed} compressed "
+        f"(cables cut stress-free to the flat shape, equal EA)",
+        f"mechanisms stiffened {stiff}",
+        f"tension holds for   {band}",
+        f"verdict             {rep.verdict()}",
+    ]
+    if rep.capped:
+        lines.insert(-1, "note                the LP hit its force bound: a tension-only "
+                         "self-stress exists")
+    return "\n".join(lines)

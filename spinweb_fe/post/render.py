@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.encoders import CMAP, WRITERS
+from spinweb_fe.io.media import CMAP, WRITERS
 from spinweb_fe.errors import InputError, RunError
 
-log = logging.getLogger("spinweb")
+log = logging.getLogger(__name__)
 
 BACKGROUND = "white"
 HUB_FACE = (0.82, 0.82, 0.82)
@@ -97,7 +97,7 @@ def load_scene(path) -> Scene:
     InputError
         Missing or unreadable file, no ``/mesh``, no frames.
     """
-    from spinweb_fe.results import open_h5
+    from spinweb_fe.io.h5 import open_h5
 
     path = Path(path)
     with open_h5(path) as h5:

@@ -1,0 +1,126 @@
+"""A validated case -> the scene of a run: mesh, model, control, initial state and step.
+
+This is where case keys meet the generators and the solver's data: generator errors are
+mapped back to the case key at fault (InputError, exit code 2), and derived values that
+valid-looking extremes (1e-300, 1e300) can break are checked before anything runs.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from meshgen.build import web_mesh
+from meshgen.checks import MeshValueError, check_mesh
+from meshgen.mesh import Mesh
+from meshgen.tethers import tethers
+from spinweb_fe.errors import InputError
+from spinweb_fe.fe.control import Control, make_control
+from spinweb_fe.fe.model import Model, build_model, choose_dt
+from spinweb_fe.fe.state import State, initial_state
+
+MAX_STEPS = 1e10  # more steps than this is a units slip (days of run time), not a case
+
+# generator parameter -> case key, per scene
+_WEB_KEYS = {"side": "web.side", "mesh_width": "web.mesh_width",
+             "elements_per_segment": "web.elements_per_segment",
+             "hub_cutout": "web.hub_cutout", "hub_radius": "hub.radius",
+             "topology": "web.topology", "pattern": "fold.pattern", "wrap": "fold.wrap",
+             "ties": "fold.ties", "corner_mass": "tip_mass.mass"}
+_TETHER_KEYS = {"count": "tethers.count", "length": "tethers.length",
+                "elements": "tethers.elements", "hub_radius": "hub.radius",
+                "tip_mass": "tip_mass.mass", "pattern": "fold.pattern", "wrap": "fold.wrap"}
+
+
+class Scene(NamedTuple):
+    """Everything a run starts from (no output yet)."""
+
+    mesh: Mesh
+    model: Model
+    control: Control
+    state: State
+    dt: float
+
+
+def build_mesh(case) -> Mesh:
+    """Initial mesh of a case (see :func:`meshgen.build.web_mesh`, :func:`meshgen.tethers.tethers`).
+
+    Raises
+    ------
+    InputError
+        If a generator rejects the case (key named) or the mesh violates an invariant of
+        :func:`meshgen.checks.check_mesh`.
+    """
+    keys = _WEB_KEYS if case.scene == "web" else _TETHER_KEYS
+    try:
+        if case.scene == "web":
+            w, f = case.web, case.fold
+            mesh = web_mesh(w.topology, w.side, w.mesh_width, w.elements_per_segment,
+                            case.tip_mass.mass, case.hub.radius, w.hub_cutout, f.pattern,
+                            f.wrap, f.ties)
+        else:
+            t = case.tethers
+            mesh = tethers(t.count, t.length, t.elements, case.hub.radius, case.tip_mass.mass,
+                           case.fold.pattern, case.fold.wrap)
+    except MeshValueError as exc:
+        raise InputError(case.source, keys.get(exc.param, case.scene), exc.reason) from None
+    problems = check_mesh(mesh)
+    if problems:
+        raise InputError(case.source, case.scene, "invalid mesh: " + "; ".join(problems))
+    return mesh
+
+
+def model_from_case(case, mesh: Mesh) -> Model:
+    """Model for a validated case and its mesh."""
+    cab, hub = case.cable, case.hub
+    return build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
+                       hub_radius=hub.radius, hub_inertia=hub.inertia, hub_friction=hub.friction)
+
+
+def control_from_case(case) -> Control:
+    """The case's [control] table as a Control (the loader has checked the law's keys)."""
+    c = case.control
+    law_keys = {k: getattr(c, k) for k in c.__dataclass_fields__ if k != "law"}
+    return make_control(c.law, {k: v for k, v in law_keys.items() if v is not None})
+
+
+def prepare(case) -> Scene:
+    """Mesh, model, control, initial state and dt of a case (no output)."""
+    mesh = build_mesh(case)
+    model = model_from_case(case, mesh)
+    control = control_from_case(case)
+    omega0 = case.initial.omega
+    if control.law.prescribes_rate:
+        _, w_law = control.torque_or_rate(0.0, omega0)
+        if abs(w_law - omega0) > 1e-12 * max(1.0, abs(omega0)):
+            raise InputError(case.source, "initial.omega",
+                             f"must equal the prescribed hub rate at t = 0 ({w_law:g} rad/s) "
+                             f"for control.law = '{control.law.name}'")
+    _check_model(case, model)
+    state = initial_state(model, omega0, case.initial.spin)
+    dt = choose_dt(model, case.time.cfl, case.time.dt, case.output.history_dt)
+    n_steps = case.time.end / dt
+    if not n_steps <= MAX_STEPS:
+        raise InputError(case.source, "time.end", f"needs {n_steps:.3g} steps of {dt:.3g} s, "
+                         f"more than the limit {MAX_STEPS:.0e} (check time.dt and the cable)")
+    return Scene(mesh, model, control, state, dt)
+
+
+def _check_model(case, model):
+    """Derived values that valid-looking extremes (1e-300, 1e300) can break: InputError."""
+    src = case.source
+    mass = model.nodes.mass
+    el = model.elements
+    if not (np.all(np.isfinite(mass)) and np.all(mass[el.nodes] > 0)):
+        raise InputError(src, "cable.density", "gives node masses that are zero or not finite "
+                         "(check cable.density and cable.area)")
+    if not np.all(np.isfinite(el.ea)) or not np.all(np.isfinite(el.cdamp)):
+        raise InputError(src, "cable.youngs_modulus", "E * A (or the damper) is not finite")
+    if not 0 < model.dt_critical < math.inf:
+        raise InputError(src, "cable", f"the critical time step is {model.dt_critical:g} s "
+                         "(check cable.youngs_modulus and cable.density)")
+    if not 0 < model.hub.j_eff < math.inf:
+        raise InputError(src, "hub.inertia",
+                         f"the hub's effective inertia is {model.hub.j_eff:g} kg m^2")

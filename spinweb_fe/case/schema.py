@@ -1,0 +1,106 @@
+"""The case schema: every key of a case file, with its type, default, check, SI unit and doc,
+in one place. The named choices (topologies, folds, wraps, control laws) come from their
+registries (:mod:`meshgen.registry`, :mod:`spinweb_fe.fe.control`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from meshgen.registry import TETHER_FOLDS, TIES, TOPOLOGIES, WEB_FOLDS, WRAP_SIGN
+from spinweb_fe.fe.control import LAWS
+
+REQUIRED = object()  # marker: the key has no default
+
+SPINS = ("all", "hub")
+MAX_ELEMENTS = 10_000_000  # cable elements of a scene (memory: about 1 kB per element)
+MAX_HISTORY_ROWS = 10_000_000  # time.end / output.history_dt
+MAX_FRAMES = 100_000  # time.end / output.frame_dt
+
+
+@dataclass(frozen=True)
+class Field:
+    """One case key: its type, default, and check.
+
+    kind: 'float' | 'int' | 'str' | 'bool'; check: 'pos' (> 0), 'nonneg' (>= 0),
+    'frac' (0 < x <= 1), 'finite', 'nonzero', a tuple of allowed strings, or None.
+    """
+
+    kind: str
+    default: Any = REQUIRED
+    check: Any = None
+    unit: str = ""
+    doc: str = ""
+
+
+F = Field
+
+
+def _control_table() -> dict:
+    """[control]: the law and the keys of every law of the registry (each optional here;
+    the loader requires those of the chosen law)."""
+    table = {"law": F("str", "free", tuple(LAWS), "", "hub torque law")}
+    for law in LAWS.values():
+        for key in law.keys:
+            table.setdefault(key.name, F("float", None, key.check, key.unit, key.doc))
+    return table
+
+
+SCHEMA: dict[str, dict[str, Field]] = {
+    "web": {
+        "topology": F("str", "quadquad", tuple(TOPOLOGIES), "", "web/mesh topology"),
+        "side": F("float", 100.0, "pos", "m", "web side S"),
+        "mesh_width": F("float", 2.5, "pos", "m", "mesh width t (cable spacing)"),
+        "elements_per_segment": F("int", 1, "pos", "", "cable elements between two mesh nodes"),
+        "areal_density": F("float", None, "pos", "kg/m^2",
+                           "if set, the cable area is derived from it (see docs/mesh.md)"),
+        "hub_cutout": F("float", None, "nonneg", "m",
+                        "half-width of the central square removed for the hub (default: "
+                        "smallest mesh line at or outside the hub radius)"),
+    },
+    "tethers": {
+        "count": F("int", 4, "pos", "", "number of radial tethers n"),
+        "length": F("float", 50.0, "pos", "m", "tether length H"),
+        "elements": F("int", 50, "pos", "", "elements per tether"),
+    },
+    "cable": {
+        "youngs_modulus": F("float", 180e9, "pos", "Pa", "Young's modulus E"),
+        "density": F("float", 1540.0, "pos", "kg/m^3", "cable density rho"),
+        "area": F("float", 1.025e-5, "pos", "m^2", "cross-section area A"),
+        "damping_ratio": F("float", 0.0, "nonneg", "", "axial damping, fraction of critical"),
+    },
+    "tip_mass": {
+        "mass": F("float", 10.0, "nonneg", "kg", "point mass at each web corner / tether tip"),
+    },
+    "hub": {
+        "radius": F("float", 6.3, "pos", "m", "hub radius r0"),
+        "mass": F("float", 100.0, "pos", "kg", "hub mass"),
+        "inertia": F("float", None, "pos", "kg m^2", "hub inertia (default mass*radius^2)"),
+        "friction": F("float", 0.0, "nonneg", "", "Coulomb coefficient of cable-hub contact"),
+    },
+    "fold": {
+        "pattern": F("str", None, tuple(WEB_FOLDS) + tuple(TETHER_FOLDS), "",
+                     "web: star | flat; tethers: straight | coiled (default star / coiled)"),
+        "wrap": F("str", "trailing", tuple(WRAP_SIGN), "", "coil direction relative to the spin"),
+        "ties": F("str", "frame", tuple(TIES), "", "hub attachment of the star-folded web: the "
+                  "whole hole boundary (frame) or the 4 axis nodes (axes)"),
+    },
+    "initial": {
+        "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),
+        "spin": F("str", "all", SPINS, "", "all: hub and web spin; hub: only the hub"),
+    },
+    "control": _control_table(),
+    "time": {
+        "end": F("float", REQUIRED, "pos", "s", "end time"),
+        "cfl": F("float", 0.2, "frac", "",
+                 "fraction of the critical step L0/c (0.2: see docs/stability.md)"),
+        "dt": F("float", None, "pos", "s", "optional cap on the time step"),
+    },
+    "output": {
+        "history_dt": F("float", 1e-3, "pos", "s", "interval of scalar histories"),
+        "frame_dt": F("float", 0.05, "nonneg", "s", "interval of VTU frames (0 = none)"),
+        "directory": F("str", None, None, "", "result folder, relative to the case file"),
+    },
+}
+TOP_KEYS = {"title": F("str", "", None, "", "free text")}

@@ -1,0 +1,1 @@
+"""The explicit solver's data and step: model, state, control laws, numba kernels."""

@@ -1,0 +1,183 @@
+"""The Model: the fixed data of a run, grouped by entity as the step kernels take it.
+
+Model never changes during a run; the State (:mod:`spinweb_fe.fe.state`) holds what
+changes, the Control (:mod:`spinweb_fe.fe.control`) the hub law. ``Elements``, ``Nodes``
+and ``Hub`` are NamedTuples of arrays and scalars that numba compiles and caches; a test
+can build them by hand for a 3-node model and call one step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from meshgen.mesh import Mesh, lumped_mass
+
+
+class Elements(NamedTuple):
+    """The cable elements (m of them).
+
+    Attributes
+    ----------
+    nodes : (m, 2) int64
+        End nodes i, j of each element.
+    rest_len : (m,) float64 [m]
+        Unstretched length L0 (from the flat web).
+    inv_rest : (m,) float64 [1/m]
+        1 / L0.
+    ea : (m,) float64 [N]
+        Axial stiffness E A.
+    cdamp : (m,) float64 [N s/m]
+        Axial damper coefficient zeta A sqrt(E rho) (critical for the element mode).
+    damped : bool
+        Whether any element has a damper (the undamped loop skips the damper terms).
+    """
+
+    nodes: np.ndarray
+    rest_len: np.ndarray
+    inv_rest: np.ndarray
+    ea: np.ndarray
+    cdamp: np.ndarray
+    damped: bool
+
+
+class Nodes(NamedTuple):
+    """The nodes (n of them).
+
+    Attributes
+    ----------
+    mass : (n,) float64 [kg]
+        Lumped cable mass plus point masses (tied nodes included; the hub is not).
+    inv_mass : (n,) float64 [1/kg]
+        1/m for free nodes, 0 for nodes moved kinematically (tied to the hub).
+    contact : (n,) bool
+        Nodes checked for cable-hub contact (all False when the scene has no hub contact).
+    """
+
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    contact: np.ndarray
+
+
+class Hub(NamedTuple):
+    """The rigid hub on a fixed axis (+z) and the nodes tied to it.
+
+    Attributes
+    ----------
+    radius : float [m]
+        r0 (0: no hub surface, no contact).
+    friction : float
+        Coulomb coefficient of cable-hub contact.
+    inertia : float [kg m^2]
+        J_hub about the axis.
+    j_eff : float [kg m^2]
+        J_hub plus the tied nodes' m r^2.
+    tied_idx : (k,) int64
+        Nodes tied to the hub.
+    tied_ref : (k, 3) float64 [m]
+        Their hub-frame positions.
+    """
+
+    radius: float
+    friction: float
+    inertia: float
+    j_eff: float
+    tied_idx: np.ndarray
+    tied_ref: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Fixed data of a run (SI units).
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The mesh the model was built from (reference positions, sets, arm data).
+    elements : Elements
+    nodes : Nodes
+    hub : Hub
+    tip_idx : (n_arms,) int64
+        The tip (corner) node of each arm.
+    wave_speed : float [m/s]
+        sqrt(E / rho).
+    dt_critical : float [s]
+        min L0/c, reduced for damping by sqrt(1 + zeta^2) - zeta.
+    """
+
+    mesh: Mesh
+    elements: Elements
+    nodes: Nodes
+    hub: Hub
+    tip_idx: np.ndarray
+    wave_speed: float
+    dt_critical: float
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes.mass)
+
+    @property
+    def n_elems(self) -> int:
+        return len(self.elements.nodes)
+
+
+def make_hub(radius, friction, inertia, node_mass, tied_idx, tied_ref) -> Hub:
+    """A Hub whose effective inertia counts the tied nodes (J_hub + sum m (x^2 + y^2))."""
+    tied_idx = np.asarray(tied_idx, dtype=np.int64)
+    tied_ref = np.ascontiguousarray(tied_ref, dtype=np.float64).reshape(-1, 3)
+    j_eff = inertia + float(np.sum(node_mass[tied_idx]
+                                   * (tied_ref[:, 0] ** 2 + tied_ref[:, 1] ** 2)))
+    return Hub(float(radius), float(friction), float(inertia), float(j_eff), tied_idx, tied_ref)
+
+
+def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
+                hub_radius=None, hub_inertia=1.0, hub_friction=0.0, contact=True) -> Model:
+    """Assemble a Model from a Mesh and material / hub data (SI units).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    youngs_modulus, density, area : float [Pa], [kg/m^3], [m^2]
+    damping_ratio : float
+        Axial damping, fraction of critical.
+    hub_radius : float or None [m]
+        r0 (default the mesh's).
+    hub_inertia : float [kg m^2]
+    hub_friction : float
+    contact : bool
+        Check cable-hub contact for the free nodes (False, or hub_radius 0, skips it).
+    """
+    r0 = mesh.hub_radius if hub_radius is None else hub_radius
+    node_mass = lumped_mass(mesh, density * area)
+    tied = np.asarray(mesh.node_sets["hub_tied"], dtype=np.int64)
+    inv = np.where(node_mass > 0, 1.0 / np.where(node_mass > 0, node_mass, 1.0), 0.0)
+    inv[tied] = 0.0
+    hub = make_hub(r0, hub_friction, hub_inertia, node_mass, tied, mesh.node_pos[tied])
+    m = mesh.n_elems
+    c = math.sqrt(youngs_modulus / density)
+    zeta = damping_ratio
+    positive = mesh.elem_rest_len[mesh.elem_rest_len > 0]
+    dt_crit = float(positive.min() / c) * (math.sqrt(1 + zeta * zeta) - zeta) if m else math.inf
+    rest = np.ascontiguousarray(mesh.elem_rest_len)
+    cdamp = np.full(m, zeta * area * math.sqrt(youngs_modulus * density))
+    elements = Elements(np.ascontiguousarray(mesh.elem_nodes), rest, 1.0 / rest,
+                        np.full(m, youngs_modulus * area), cdamp, bool(np.any(cdamp > 0.0)))
+    nodes = Nodes(node_mass, inv, (inv > 0) & bool(contact and r0 > 0))
+    return Model(mesh=mesh, elements=elements, nodes=nodes, hub=hub,
+                 tip_idx=np.asarray(mesh.node_sets["tips"], dtype=np.int64),
+                 wave_speed=c, dt_critical=dt_crit)
+
+
+def choose_dt(model: Model, cfl: float, dt_cap=None, history_dt=None) -> float:
+    """cfl * dt_critical, capped by ``dt_cap``, then shortened so that history_dt is a whole
+    number of steps (history rows fall exactly on multiples of history_dt)."""
+    dt = cfl * model.dt_critical
+    if dt_cap:
+        dt = min(dt, dt_cap)
+    if history_dt:
+        dt = history_dt / math.ceil(history_dt / dt * (1 - 1e-12))
+    return dt

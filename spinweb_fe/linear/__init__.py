@@ -1,0 +1,1 @@
+"""Linear analyses of the flat web: equilibrium and stiffness assembly, prestressability by spin."""

@@ -1,0 +1,1 @@
+"""Post-processing of result files: the four-panel plot and rendered pictures and videos."""

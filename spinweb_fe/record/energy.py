@@ -1,0 +1,63 @@
+"""The energy balance of a run and its audit."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from spinweb_fe.errors import RunError
+from spinweb_fe.record.recorders import Recorder
+
+log = logging.getLogger(__name__)
+
+ENERGY_LIMIT = 0.5  # stop when the energy balance error exceeds this fraction of the energy scale
+ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, reduce time.cfl
+
+
+def energy_balance(h):
+    """KE + SE - W + D (should stay constant) for a history dict / row table."""
+    return (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
+            + h["damping_dissipation"] + h["contact_dissipation"])
+
+
+class EnergyAudit(Recorder):
+    """Energy balance check per chunk of rows: KE + SE - W + D must stay near its first value.
+
+    The error is measured against the energy scale: the first row's KE + SE, or the largest
+    torque work so far if that is larger (a run from rest). Above ``limit`` the run stops
+    (RunError); above ENERGY_WARN it warns once.
+    """
+
+    name = "energy"
+
+    def __init__(self, limit=ENERGY_LIMIT):
+        self.limit = limit
+        self.ref = None  # (balance at the first row [J], energy scale [J])
+        self.warned = False
+
+    def rows(self, rows):
+        if not len(rows["time"]):
+            return
+        t = float(rows["time"][-1])
+        bal = energy_balance(rows)
+        if self.ref is None:
+            self.ref = (float(bal[0]), max(abs(rows["kinetic_energy"][0])
+                                           + abs(rows["strain_energy"][0]), 1e-30))
+        scale = max(self.ref[1], float(np.max(np.abs(rows["torque_work"]))))
+        err = float(np.max(np.abs(bal - self.ref[0]))) / scale
+        if err > self.limit:
+            raise RunError(f"energy balance off by {100 * err:.0f} % of the energy scale "
+                           "(numerical instability; reduce time.cfl)", time=t)
+        if err > ENERGY_WARN and not self.warned:
+            self.warned = True
+            log.warning("warning: at t = %.6g s the energy balance is off by %.2g %% of the "
+                        "energy scale (slack/taut snapping or hub impacts; a smaller time.cfl "
+                        "or a little damping helps, see docs/stability.md)", t, 100 * err)
+
+    def memory(self):
+        return {} if self.ref is None else {"ref": np.asarray(self.ref, dtype=np.float64)}
+
+    def restore(self, memory):
+        if "ref" in memory:
+            self.ref = tuple(float(x) for x in memory["ref"])

@@ -1,0 +1,147 @@
+"""A case to a result folder: scene, writers, the event loop, and the run's final status."""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from spinweb_fe.case.scene import prepare
+from spinweb_fe.errors import InputError, RunError, RunInterrupted
+from spinweb_fe.io.checkpoint import CHECKPOINT_NAME, Checkpoint, write_checkpoint
+from spinweb_fe.io.results import ResultWriter
+from spinweb_fe.record.recorders import Recorder
+from spinweb_fe.run.loop import Schedule, choose_threads, simulate
+from spinweb_fe.run.terminal import Progress, StopSignals
+
+log = logging.getLogger(__name__)
+
+
+class Checkpointer(Recorder):
+    """Writes ``DIR/checkpoint.h5`` at the loop's checkpoint events (a recorder)."""
+
+    def __init__(self, path, case, writer, dt, checkpoint_dt, threads):
+        self.path, self.case, self.writer = Path(path), case, writer
+        self.dt, self.checkpoint_dt, self.threads = dt, checkpoint_dt, threads
+
+    def checkpoint(self, state, memory):
+        arrays = (state.node_pos, state.node_vel, *state.hub, *state.totals)
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise RunError("non-finite state at a checkpoint (numerical instability)",
+                           time=float(state.time[0]))
+        w = self.writer
+        write_checkpoint(self.path, Checkpoint(
+            state=state, dt=self.dt, history_rows=w.n_rows, frames=len(w.pvd_entries),
+            pvd_entries=list(w.pvd_entries), case_toml=self.case.to_toml(),
+            case_source=self.case.source, checkpoint_dt=self.checkpoint_dt, memory=memory,
+            threads=self.threads, run_id=w.run_id))
+
+
+def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threads=None):
+    """Run a validated case and write results.h5 and the ParaView collection into out_dir.
+
+    Parameters
+    ----------
+    case : spinweb_fe.case.Case
+    out_dir : str or Path
+    progress : bool
+        Progress bar on a terminal.
+    checkpoint_dt : float [s]
+        Write ``out_dir/checkpoint.h5`` every ``checkpoint_dt`` of simulated time, at the end
+        and when interrupted (0: never).
+    resume : spinweb_fe.io.checkpoint.Checkpoint or None
+        Continue this checkpoint's run (see :func:`spinweb_fe.run.restart.restart_case`).
+    threads : int or None
+        Threads of the step loop (None: :func:`choose_threads` decides; a restart uses
+        the checkpoint's count, which keeps the continuation bit-identical).
+
+    Returns
+    -------
+    spinweb_fe.run.loop.RunResult
+
+    Raises
+    ------
+    InputError
+        Invalid case or mesh (nothing is written).
+    RunError
+        Instability or I/O failure; :class:`RunInterrupted` on SIGINT / SIGTERM. The results
+        written so far stay readable and the root attribute ``status`` says why.
+    """
+    out_dir = Path(out_dir)
+    step0 = resume.steps if resume is not None else 0
+    with StopSignals() as stop:
+        mesh, model, control, state, dt = prepare(case)
+        if resume is not None:
+            state = _resumed_state(case, model, dt, resume)
+        if stop():
+            raise RunInterrupted(stop(), float(state.time[0]))  # before anything is written
+        log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), %d steps%s",
+                 case.title or case.source, model.n_nodes, model.n_elems, dt, model.dt_critical,
+                 dt / model.dt_critical, int(math.ceil(case.time.end / dt - 1e-9)),
+                 f", from step {step0}" if resume is not None else "")
+        writer = ResultWriter(out_dir, case, model, dt, write_frames=case.output.frame_dt > 0,
+                              resume=resume)
+        if threads is None and resume is not None:
+            threads = resume.threads
+        threads = choose_threads(model, threads)
+        writer.set_attrs(threads=threads)
+        recorders = [writer, Progress(case.time.end, progress)]
+        if checkpoint_dt > 0:
+            recorders.append(Checkpointer(out_dir / CHECKPOINT_NAME, case, writer, dt,
+                                          checkpoint_dt, threads))
+        schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
+                            checkpoint_dt)
+        status = "failed"
+        try:
+            res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
+                           resume=None if resume is None else resume.memory, threads=threads)
+            status = res.status
+            if res.status != "completed":
+                status = f"{res.status} at t = {float(state.time[0]):.6g} s"
+        except RunError as exc:
+            status = f"failed: {exc}"
+            raise
+        except KeyboardInterrupt:  # a second SIGINT: stopped at once, not at an event
+            status = f"interrupted by SIGINT (twice) at t = {float(state.time[0]):.6g} s"
+            raise
+        except BaseException as exc:
+            status = f"failed: {type(exc).__name__}: {exc}"
+            raise
+        finally:
+            recorders[1].end(status)  # the progress line ends even when the loop raised
+            _finish(writer, steps=int(state.step[0]), status=status)
+    if res.status != "completed":
+        raise RunInterrupted(res.stop_reason, float(state.time[0]))
+    log.info("done: %d steps in %.2f s loop + %.2f s compile (%.3g element-updates/s)",
+             res.steps, res.loop_s, res.compile_s,
+             model.n_elems * (res.steps - step0) / max(res.loop_s, 1e-9))
+    return res
+
+
+def _finish(writer, **attrs):
+    """Final attributes and close; an I/O error here must not hide the run's own error."""
+    try:
+        writer.set_attrs(**attrs)
+    except Exception as exc:  # noqa: BLE001 - reported, the file keeps its last flush
+        log.error("could not write the final attributes of results.h5: %s", exc)
+    finally:
+        writer.close()
+
+
+def _resumed_state(case, model, dt, ck):
+    """The checkpoint's state after checking that it belongs to this case's model."""
+    src = str(Path(case.source))
+    if dt != ck.dt:
+        raise InputError(src, "time", f"the time step {dt!r} s differs from the checkpoint's "
+                         f"{ck.dt!r} s: the case changed")
+    st = ck.state
+    if st.node_pos.shape != (model.n_nodes, 3) or st.node_vel.shape != st.node_pos.shape:
+        raise InputError(src, "", f"the checkpoint holds {st.node_pos.shape[0]} nodes, the "
+                         f"case's mesh {model.n_nodes}: the case changed")
+    n_total = int(math.ceil(case.time.end / dt - 1e-9))
+    if ck.steps >= n_total:
+        raise InputError("--set", "time.end", f"{case.time.end:g} s is not after the checkpoint "
+                         f"at t = {ck.time:.6g} s (continue with --set time.end=...)")
+    return st

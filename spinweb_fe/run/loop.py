@@ -1,0 +1,230 @@
+"""The event loop: the numba step loop runs in chunks between events, and recorders act
+only at event boundaries (history rows, frames, checkpoints, the end). Writes no files.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from spinweb_fe.errors import RunError
+from spinweb_fe.fe import step
+from spinweb_fe.fe.control import Control
+from spinweb_fe.fe.model import Model
+from spinweb_fe.fe.state import State
+from spinweb_fe.record.arms import ArmTracker
+from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
+from spinweb_fe.record.history import table_rows
+from spinweb_fe.record.recorders import Frame, RunInfo
+
+ROWS_PER_CHUNK = 256  # history rows between two returns to Python (flush, progress, audit)
+WALL_CHUNK_S = 0.2  # ... and at most about this much wall time (signals, progress)
+FIRST_CHUNK_STEPS = 64  # steps of the first chunk, before the loop speed is known
+PARALLEL_MIN_ELEMENTS = 20000  # below this a parallel region costs more than it saves
+
+
+class Schedule(NamedTuple):
+    """When things happen [s]: the end, history rows, frames (0: none) and checkpoints
+    (0: only at the end and when stopped, if a recorder takes them)."""
+
+    t_end: float
+    history_dt: float
+    frame_dt: float = 0.0
+    checkpoint_dt: float = 0.0
+
+
+@dataclass
+class RunResult:
+    """What a run returns: the history (name -> array), timings and the final state."""
+
+    history: dict
+    dt: float
+    steps: int
+    loop_s: float
+    compile_s: float
+    state: State
+    status: str = "completed"
+    frames: int = 0
+    threads: int = 1
+    stop_reason: str | None = None
+    memory: dict = field(default_factory=dict)
+
+
+def start(model: Model, control: Control, state: State, dt: float):
+    """Shift v_0, omega_0 back half a step (second-order start of central differences)."""
+    step.start_half_step(model.elements, model.nodes, model.hub, control.kernel, state, dt)
+
+
+def current_tension(model: Model, pos, vel):
+    """(m,) element tensions [N] at the given positions."""
+    t = np.zeros(model.n_elems)
+    step.eval_elements(model.elements, pos, vel, np.zeros((model.n_nodes, 3)), t, False)
+    return t
+
+
+def choose_threads(model: Model, requested=None) -> int:
+    """Threads for the step loop: ``requested`` (or $SPINWEB_THREADS), else 2 for webs of at
+    least PARALLEL_MIN_ELEMENTS elements on a machine with 2+ cores, else 1. Also sets numba's
+    thread count."""
+    import numba
+
+    if requested is None and os.environ.get("SPINWEB_THREADS"):
+        requested = int(os.environ["SPINWEB_THREADS"])
+    if requested is None:
+        requested = 2 if model.n_elems >= PARALLEL_MIN_ELEMENTS else 1
+    threads = max(1, min(int(requested), numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(threads)
+    return threads
+
+
+class _Chunks:
+    """The step loop's buffers and the turning of its records into history rows."""
+
+    def __init__(self, model, control, tracker, rec_every, threads):
+        self.args = (model.elements, model.nodes, model.hub, control.kernel)
+        self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
+        rows = ROWS_PER_CHUNK + 1
+        n_probes = len(tracker.probes)
+        self.rec = step.Recording(rec_every, tracker.probes,
+                                  np.zeros((rows, len(step.REC_COLUMNS))),
+                                  np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)))
+        self.tracker = tracker
+        self.history = []
+
+    def advance(self, state, dt, nsteps):
+        return step.advance(*self.args, state, self.force, self.rec, dt, nsteps)
+
+    def rows(self, nrec) -> dict:
+        rows = table_rows(self.rec.table, nrec)
+        L, phi, wtip = self.tracker.update(self.rec.probe_pos[:nrec], self.rec.probe_vel[:nrec],
+                                           rows["hub_angle"])
+        rows.update(arm_length=L, arm_angle=phi, tip_omega=wtip)
+        self.history.append(rows)
+        return rows
+
+    def joined(self) -> dict:
+        names = self.history[0] if self.history else {}
+        return {k: np.concatenate([r[k] for r in self.history]) for k in names}
+
+
+def simulate(model: Model, control: Control, state: State, dt: float, schedule: Schedule,
+             recorders=(), *, resume=None, stop=None, threads=None,
+             energy_limit=ENERGY_LIMIT) -> RunResult:
+    """Integrate from ``state`` to ``schedule.t_end``; Python acts only at event boundaries.
+
+    Parameters
+    ----------
+    model, control, state : Model, Control, State
+        ``state`` is advanced in place. A fresh state holds the initial velocities v_0.
+    dt : float [s]
+    schedule : Schedule
+    recorders : sequence of spinweb_fe.record.recorders.Recorder
+        Told of the start, every chunk of history rows, every frame, every checkpoint and
+        the end (see that module). The energy audit (:class:`EnergyAudit`) checks every chunk
+        after them.
+    resume : dict or None
+        The memory of a checkpoint (name -> dict of arrays): ``state`` then already holds
+        half-step velocities v_{n-1/2} (the central-difference start is not applied again)
+        and the arm measure and the recorders continue from their memory.
+    stop : callable() -> str or None
+        Checked at every event boundary; a non-empty answer (e.g. 'SIGTERM') stops the run
+        there with status 'interrupted by <answer>'.
+    threads : int or None
+        Threads of the step loop (see :func:`choose_threads`); results are bit-identical
+        for a given thread count.
+    energy_limit : float
+        Relative energy-balance error that stops the run (RunError).
+
+    Returns
+    -------
+    RunResult
+        The history recorded by this call, with ``status`` 'completed' or 'interrupted by ...'.
+    """
+    rec_every = max(1, round(schedule.history_dt / dt))
+    n_total = int(math.ceil(schedule.t_end / dt - 1e-9))
+    step0 = int(state.step[0])
+    if step0 > n_total:
+        raise ValueError(f"the state is at step {step0}, after the end step {n_total}")
+    frame_every = max(1, round(schedule.frame_dt / dt)) if schedule.frame_dt > 0 else 0
+    ck_every = max(1, round(schedule.checkpoint_dt / dt)) if schedule.checkpoint_dt > 0 else 0
+    tracker = ArmTracker(model.mesh, model.hub.radius)
+    audit = EnergyAudit(energy_limit)
+    owners = [tracker, audit, *recorders]  # everything with a memory
+    for owner in owners:
+        if resume and owner.name in resume:
+            owner.restore(resume[owner.name])
+    threads = choose_threads(model, threads)
+    chunks = _Chunks(model, control, tracker, rec_every, threads)
+    t_compile = time.perf_counter()
+    if resume is None:
+        start(model, control, state, dt)
+    chunks.advance(state.copy(), dt, 0)  # compile / load the loop outside the timed part
+    compile_s = time.perf_counter() - t_compile
+    for r in recorders:
+        r.start(RunInfo(model, dt, n_total, step0, threads))
+
+    def memory():
+        return {o.name: o.memory() for o in owners if o.name}
+
+    def collect(code, nrec):
+        rows = chunks.rows(nrec)
+        if nrec:
+            for r in recorders:
+                r.rows(rows)
+        if code != 0:
+            raise RunError("non-finite positions or energies (numerical instability; "
+                           "reduce time.cfl or time.dt)", time=float(state.time[0]))
+        if nrec:
+            audit.rows(rows)
+
+    frames, loop_s, status, reason = 0, 0.0, "completed", None
+    budget = FIRST_CHUNK_STEPS
+    while True:
+        n = int(state.step[0])
+        reason = stop() if stop else None
+        if reason:
+            if n > step0:
+                _checkpoint(recorders, state, memory())
+            status = f"interrupted by {reason}"
+            break
+        if n > step0 and (n == n_total or (ck_every and n % ck_every == 0)):
+            _checkpoint(recorders, state, memory())
+        if frame_every and (n % frame_every == 0 or n == n_total):
+            frame = Frame(n * dt, state.node_pos.copy(), state.node_vel.copy(),
+                          current_tension(model, state.node_pos, state.node_vel))
+            for r in recorders:
+                r.frame(frame)
+            frames += 1
+        if n == n_total:  # the last row: record at t_end on a copy, the state stays at t_end
+            t0 = time.perf_counter()
+            code, nrec = chunks.advance(state.copy(), dt, 1)
+            loop_s += time.perf_counter() - t0
+            collect(code, nrec)
+            break
+        # next event: a chunk of rows, a frame, a checkpoint, the end, or the wall-time budget
+        target = min(n_total, n + ROWS_PER_CHUNK * rec_every, n + budget)
+        if frame_every:
+            target = min(target, (n // frame_every + 1) * frame_every)
+        if ck_every:
+            target = min(target, (n // ck_every + 1) * ck_every)
+        t0 = time.perf_counter()
+        code, nrec = chunks.advance(state, dt, target - n)
+        elapsed = time.perf_counter() - t0
+        loop_s += elapsed
+        # steps that take about WALL_CHUNK_S, growing at most 8-fold per chunk
+        budget = max(1, min(8 * budget, int(WALL_CHUNK_S * (target - n) / max(elapsed, 1e-9))))
+        collect(code, nrec)
+    for r in recorders:
+        r.end(status)
+    return RunResult(chunks.joined(), dt, int(state.step[0]), loop_s, compile_s, state, status,
+                     frames, threads, reason, memory())
+
+
+def _checkpoint(recorders, state, memory):
+    for r in recorders:
+        r.checkpoint(state, memory)

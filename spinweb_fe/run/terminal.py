@@ -1,0 +1,89 @@
+"""The terminal side of a run: the progress bar and the stop signals."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+
+from spinweb_fe.record.recorders import Recorder
+
+
+class Progress(Recorder):
+    """Simulated time, steps/s and ETA on stderr; silent when not a terminal or under CI."""
+
+    def __init__(self, t_end, enabled=True):
+        self.t_end = t_end
+        self.enabled = enabled and sys.stderr.isatty() and not os.environ.get("CI")
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+        self.dt = 1.0
+        self.mark = (self.t0, 0.0)  # (wall clock, simulated time) of the last update
+
+    def start(self, info):
+        self.dt = info.dt
+        self.mark = (time.perf_counter(), info.step0 * info.dt)
+
+    def rows(self, rows):
+        if not self.enabled:
+            return
+        t = float(rows["time"][-1])
+        now = time.perf_counter()
+        if now - self.last < 0.2 and t < self.t_end:
+            return
+        steps_per_s = (t - self.mark[1]) / self.dt / max(now - self.mark[0], 1e-9)
+        self.last, self.mark = now, (now, t)
+        frac = min(t / self.t_end, 1.0)
+        el = now - self.t0
+        eta = el * (1 - frac) / frac if frac > 0 else float("nan")
+        bar = "#" * int(30 * frac)
+        sys.stderr.write(f"\r[{bar:<30}] t = {t:8.4f} / {self.t_end:g} s  "
+                         f"{steps_per_s:9.3g} steps/s  ETA {eta:6.1f} s ")
+        sys.stderr.flush()
+
+    def end(self, status):
+        if self.enabled:  # once: the driver also ends it when the loop raised
+            sys.stderr.write("\n")
+            self.enabled = False
+
+
+class StopSignals:
+    """Context manager: SIGINT and SIGTERM set a flag instead of stopping the process.
+
+    Calling the object returns the name of the first signal received (or None); the
+    solver checks it between two numba chunks. A second SIGINT (Ctrl-C twice, e.g. during
+    a long first compilation) raises KeyboardInterrupt at once. The previous handlers are
+    restored on exit. Outside the main thread (where Python cannot install handlers) it
+    does nothing.
+    """
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        self.signame = None
+        self._previous = {}
+
+    def _handler(self, signum, frame):
+        if self.signame is None:
+            self.signame = signal.Signals(signum).name
+        elif signum == signal.SIGINT:
+            raise KeyboardInterrupt
+
+    def __call__(self):
+        return self.signame
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for name in self.SIGNALS:
+                sig = getattr(signal, name)
+                self._previous[sig] = signal.getsignal(sig)
+                signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self._previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        self._previous = {}
+        return False

@@ -1,0 +1,1 @@
+"""Parameter sweeps on Dask: the runs and their summary."""
