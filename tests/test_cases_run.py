@@ -1,5 +1,5 @@
 """Every case in cases/ runs end to end through the CLI with a shortened time.end, and its
-outputs follow CONTRACT.md (datasets, units, ParaView collection)."""
+outputs follow docs/interface.md (datasets, units, ParaView collection)."""
 
 import xml.etree.ElementTree as ET
 from pathlib import Path

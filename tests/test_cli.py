@@ -1,4 +1,4 @@
-"""Command line: exit codes and messages (CONTRACT.md), plot pixels, failures keep results."""
+"""Command line: exit codes and messages (docs/interface.md), plot pixels, failures keep results."""
 
 import subprocess
 import sys

@@ -1,7 +1,7 @@
 """The ``spinweb`` command line: one module per subcommand, ``main(argv) -> int``.
 
 Each subcommand module defines ``add_parser(subparsers)`` (cheap: no heavy imports) and
-``run(args) -> int``. Exit codes follow CONTRACT.md: 0 success, 2 invalid input (one
+``run(args) -> int``. Exit codes follow docs/interface.md: 0 success, 2 invalid input (one
 line naming file, key and reason), 1 run-time failure (time and cause).
 """
 

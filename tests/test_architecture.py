@@ -1,0 +1,159 @@
+"""The import rules of docs/architecture.md, read from the code with ``ast`` (imports inside
+functions count as much as those at the top of a module)."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("meshgen", "spinweb_fe")
+#: stages from the bottom up: a module may import only its own stage and the ones below
+LAYERS = ("meshgen", "spinweb_fe.errors", "spinweb_fe.fe", "spinweb_fe.record", "spinweb_fe.io",
+          "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic", "spinweb_fe.linear",
+          "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli", "spinweb_fe.__main__")
+MAX_LINES = 500
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+    return ".".join(parts)
+
+
+def library_modules() -> dict:
+    """{module name: path} of every module of the two packages."""
+    return {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+def imports_of(path: Path, name: str, known) -> set:
+    """Project modules that ``path`` imports anywhere in its body. ``from a.b import c`` is an
+    import of a.b.c when that is a module, else of a.b."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(up + ([base] if base else []))
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base
+                       for a in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t.split(".")[0] in PACKAGES + ("benchmarks",))
+    return found
+
+
+@pytest.fixture(scope="module")
+def graph():
+    mods = library_modules()
+    return {name: imports_of(path, name, mods) for name, path in mods.items()}
+
+
+def layer(name: str) -> int:
+    best = max((i for i, p in enumerate(LAYERS) if name == p or name.startswith(p + ".")),
+               default=None)
+    assert best is not None, f"{name} belongs to no stage of LAYERS"
+    return best
+
+
+def test_every_module_has_a_stage(graph):
+    for name in graph:
+        if name != "spinweb_fe":  # the package's face: version numbers only
+            layer(name)
+
+
+def test_no_import_cycles(graph):
+    state = {}
+
+    def visit(node, path):
+        state[node] = "open"
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == "open":
+                cycle = path[path.index(nxt):] + [nxt]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+
+
+def test_stages_only_look_down(graph):
+    bad = [f"{a} -> {b}" for a, deps in graph.items() for b in deps
+           if a != "spinweb_fe" and b != "spinweb_fe" and layer(b) > layer(a)]
+    assert not bad, "imports that look up: " + "; ".join(sorted(bad))
+
+
+def test_meshgen_imports_nothing_of_the_solver(graph):
+    bad = [f"{a} -> {b}" for a, deps in graph.items() if a.startswith("meshgen")
+           for b in deps if not b.startswith("meshgen")]
+    assert not bad, bad
+
+
+def test_fe_imports_only_the_mesh_value_numpy_and_numba():
+    mods = library_modules()
+    for name, path in mods.items():
+        if not name.startswith("spinweb_fe.fe"):
+            continue
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                roots = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                roots = [node.module or ""]
+            else:
+                continue
+            for r in roots:
+                top = r.split(".")[0]
+                third_party = top not in ("__future__", "math", "typing", "dataclasses")
+                allowed = (top in ("numpy", "numba") or r == "meshgen.mesh"
+                           or r.startswith("spinweb_fe.fe") or not third_party)
+                assert allowed, f"{name} imports {r}"
+
+
+def test_record_and_io_never_import_run(graph):
+    bad = [f"{a} -> {b}" for a, deps in graph.items()
+           if a.startswith(("spinweb_fe.record", "spinweb_fe.io")) for b in deps
+           if b.startswith("spinweb_fe.run")]
+    assert not bad, bad
+
+
+def test_nothing_imports_the_command_line(graph):
+    bad = [f"{a} -> {b}" for a, deps in graph.items() for b in deps
+           if b.startswith("spinweb_fe.cli") and not a.startswith(("spinweb_fe.cli",
+                                                                    "spinweb_fe.__main__"))]
+    assert not bad, bad
+
+
+def test_tests_never_import_benchmarks():
+    mods = library_modules()
+    for path in sorted((ROOT / "tests").glob("*.py")):
+        deps = imports_of(path, "tests." + path.stem, mods)
+        assert not any(d.startswith("benchmarks") for d in deps), path.name
+        text = path.read_text()
+        assert "spec_from_file_location" not in text or path.name == Path(__file__).name, \
+            f"{path.name} loads a file by path"
+
+
+def test_library_modules_stay_small():
+    big = {name: n for name, p in library_modules().items()
+           if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not big, f"modules over {MAX_LINES} lines: {big}"
+
+
+def test_the_rules_see_what_they_guard(graph, tmp_path):
+    """The reader is not vacuous: the loop imports the step kernels, an import inside a
+    function is seen, and a relative import resolves to its module."""
+    assert "spinweb_fe.fe.step" in graph["spinweb_fe.run.loop"]
+    assert "spinweb_fe.run.driver" in graph["spinweb_fe.cli.run"]  # imported inside run()
+    probe = tmp_path / "probe.py"
+    probe.write_text("def f():\n    from .step import advance\n    from . import model\n")
+    found = imports_of(probe, "spinweb_fe.fe.probe", library_modules())
+    assert found == {"spinweb_fe.fe.step", "spinweb_fe.fe.model"}
