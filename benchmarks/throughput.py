@@ -95,11 +95,38 @@ def load_average():
         return float("nan")
 
 
+def cpu_family():
+    """'family/model' of the CPU (AMD 25/17 is Zen 4, 25/1 Zen 3), '' if unknown."""
+    fields = {}
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key.strip() in ("cpu family", "model") and key.strip() not in fields:
+                    fields[key.strip()] = value.strip()
+                if not line.strip():
+                    break
+    except OSError:
+        pass
+    return f"{fields.get('cpu family', '')}/{fields.get('model', '')}".strip("/")
+
+
+def cpu_isa():
+    """The widest x86 vector extension the CPU reports: 'avx512', 'avx2' or 'portable'."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((ln.split(":", 1)[1].split() for ln in f if ln.startswith("flags")), [])
+    except OSError:
+        flags = []
+    return "avx512" if "avx512f" in flags else "avx2" if "avx2" in flags else "portable"
+
+
 def machine():
     import numba
 
     name, cores = cpu_model()
-    return {"platform": platform.platform(), "processor": name, "cores": cores,
+    return {"platform": platform.platform(), "processor": name, "cpu_family_model": cpu_family(),
+            "isa": cpu_isa(), "cores": cores,
             "python": platform.python_version(), "numba": numba.__version__,
             "numpy": np.__version__, "date": time.strftime("%Y-%m-%d %H:%M %Z"),
             "load_1min": load_average()}
