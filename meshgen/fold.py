@@ -348,7 +348,8 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
     Returns
     -------
     Mesh
-        New ``node_pos`` and ``wrap`` (+1 / -1).
+        New ``node_pos``, ``wrap`` (+1 / -1) and the node set ``coil`` (every node moved onto
+        the spoke or the rim).
     """
     if wrap not in WRAP_SIGN:
         raise MeshValueError("wrap", f"unknown wrap '{wrap}' (valid: {', '.join(WRAP_SIGN)})")
@@ -368,7 +369,9 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
     ang = np.where(spoke, psi, psi - w * (lk - l0) / r0)
     pos = np.array(mesh.node_pos)
     pos[sel] = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(len(sel))])
-    return mesh.replace(node_pos=pos, wrap=w)
+    sets = dict(mesh.node_sets)
+    sets["coil"] = sel  # what the stowage holds: the lead-in and the turns on the rim
+    return mesh.replace(node_pos=pos, wrap=w, node_sets=sets)
 
 
 def fold_web(mesh: Mesh, hub_radius: float, pattern: str = "star",

@@ -129,13 +129,13 @@ class Mesh:
         return np.sqrt(np.einsum("ij,ij->i", d, d))
 
 
-def lumped_mass(mesh: Mesh, line_density: float) -> np.ndarray:
+def lumped_mass(mesh: Mesh, line_density) -> np.ndarray:
     """(n,) node masses [kg]: half of each element's cable mass to each end, plus point masses.
 
     Parameters
     ----------
-    line_density : float [kg/m]
-        Cable mass per unit length, rho * A.
+    line_density : float or (m,) float64 [kg/m]
+        Cable mass per unit length, rho * A (one value, or one per element).
     """
     m = np.array(mesh.node_point_mass, dtype=np.float64)
     half = 0.5 * line_density * mesh.elem_rest_len

@@ -11,6 +11,7 @@ import pytest
 
 from spinweb_fe.io import checkpoint as ckmod
 from spinweb_fe.cli import main
+from spinweb_fe.fe.coil import CoilState
 from spinweb_fe.fe.state import HubState, State, Totals, to_arrays
 
 CASES = Path(__file__).parent.parent / "cases"
@@ -104,7 +105,9 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     pos = rng.standard_normal((7, 3)) * 1e3
     pos[0, 0], pos[1, 1] = 5e-324, -0.0  # subnormal and negative zero survive
     one = lambda: rng.standard_normal(1)  # noqa: E731
-    st = State(pos, rng.standard_normal((7, 3)), HubState(one(), one()),
+    st = State(pos, rng.standard_normal((7, 3)), rng.random(7), rng.random(7),
+               HubState(one(), one(), one()),
+               CoilState(np.array([3, 0], np.int64), np.array([True, False])),
                Totals(one(), one(), one()), np.array([12345], np.int64), one())
     entries = [(0.0, "frames/web_000000.vtu"), (0.05, "frames/web_000001.vtu")]
     memory = {"arms": {"prev_phi": np.array([np.nan, 1.0]),
@@ -117,7 +120,7 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     back = ckmod.read_checkpoint(path)
     for name, a in to_arrays(st).items():
         b = to_arrays(back.state)[name]
-        assert a.dtype == b.dtype and a.dtype in (np.float64, np.int64)
+        assert a.dtype == b.dtype and a.dtype in (np.float64, np.int64, np.bool_)
         assert a.tobytes() == b.tobytes(), name
     assert (back.dt, back.history_rows, back.frames, back.threads) == (1.1e-5, 12, 2, 2)
     assert back.steps == 12345

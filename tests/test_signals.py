@@ -169,7 +169,10 @@ def test_instability_keeps_readable_results_and_says_why(tmp_path, monkeypatch, 
     if (out / "checkpoint.h5").exists():
         with h5py.File(out / "checkpoint.h5", "r") as ck:
             assert ck.attrs["time"] < t_fail
-            assert all(np.all(np.isfinite(ck["state"][k][()])) for k in ck["state"])
+            values = []
+            ck["state"].visititems(lambda name, obj: values.append(obj[()])
+                                   if isinstance(obj, h5py.Dataset) else None)
+            assert len(values) >= 10 and all(np.all(np.isfinite(v)) for v in values)
 
 
 def test_second_sigint_aborts_at_once():

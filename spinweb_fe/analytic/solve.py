@@ -64,8 +64,8 @@ def params_from_case(case, tether_mass: bool = True) -> ArmParams:
     """Map a case to the model parameters.
 
     Tether scene: n = tethers.count, H = tethers.length, tip mass, and (if ``tether_mass``)
-    the tether's own mass rho A H as a uniform arm mass (the FE tether has line density
-    rho A). Web scene: n = 4 (square outlines) or 3 (triangular), H = side/2, and the web
+    the tether's own mass: ``tethers.arm_mass`` with the Eq. 7 profile if given, else
+    rho A H as a uniform arm mass (the FE tether has line density rho A). Web scene: n = 4 (square outlines) or 3 (triangular), H = side/2, and the web
     mass m_w = rho_A x web area with the paper's Eq. 7 profile, m_w/n per arm; rho_A is
     web.areal_density or the continuum value rho A lambda of the mesh (lambda = 2/t for a
     square mesh). The hub cut-out is not modelled (see docs/analytic.md).
@@ -73,6 +73,10 @@ def params_from_case(case, tether_mass: bool = True) -> ArmParams:
     hub = case.hub
     if case.scene == "tethers":
         t = case.tethers
+        if t.arm_mass is not None:  # the paper's arm: Eq. 7 density, zero at the tip
+            m_lin = t.arm_mass if tether_mass else 0.0
+            return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
+                             m_tip=case.tip_mass.mass, m_lin=m_lin)
         m_uni = case.cable.density * case.cable.area * t.length if tether_mass else 0.0
         return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
                          m_tip=case.tip_mass.mass, m_uni=m_uni)

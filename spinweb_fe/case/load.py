@@ -47,6 +47,7 @@ class Case:
     tip_mass: Any
     hub: Any
     fold: Any
+    stowage: Any
     initial: Any
     control: Any
     time: Any
@@ -71,8 +72,10 @@ class Case:
         out = {"title": self.title}
         for name in SCHEMA:
             tbl = getattr(self, name)
-            if tbl is not None:
-                out[name] = {k: v for k, v in dataclasses.asdict(tbl).items() if v is not None}
+            values = {} if tbl is None else {k: v for k, v in dataclasses.asdict(tbl).items()
+                                             if v is not None}
+            if values:
+                out[name] = values
         return out
 
     def to_toml(self) -> str:
@@ -86,6 +89,8 @@ def _fmt(v):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, float):
         return repr(v) if math.isfinite(v) else ("nan" if v != v else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
     return repr(v)
 
 
@@ -119,6 +124,8 @@ def _coerce(src, dotted, field: Field, value):
     elif kind == "str":
         if not isinstance(value, str):
             raise InputError(src, dotted, f"expected a string, got {value!r}")
+    elif kind == "table":
+        return _table(src, dotted, value)
     chk = field.check
     if isinstance(chk, tuple):
         if value not in chk:
@@ -132,6 +139,17 @@ def _coerce(src, dotted, field: Field, value):
     elif chk == "nonzero" and value == 0:
         raise InputError(src, dotted, "must not be zero")
     return value
+
+
+def _table(src, dotted, value):
+    """A list of [t, value] pairs of finite numbers -> tuple of (float, float)."""
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    if not (isinstance(value, list) and value and all(
+            isinstance(p, list) and len(p) == 2 and all(number(x) for x in p) for p in value)):
+        raise InputError(src, dotted, f"expected a list of [t, value] pairs of numbers, "
+                         f"got {value!r}")
+    return tuple((float(a), float(b)) for a, b in value)
 
 
 def validate(raw: dict, source: str = "<string>") -> Case:
@@ -185,6 +203,7 @@ def _cross_check(src, scene, raw, t):
     if fold["pattern"] not in allowed:
         raise InputError(src, "fold.pattern",
                          f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
+    _check_stowage(src, scene, raw, t)
     hub = t["hub"]
     if hub["inertia"] is None:
         hub["inertia"] = hub["mass"] * hub["radius"] * hub["radius"]
@@ -219,6 +238,57 @@ def _cross_check(src, scene, raw, t):
     if t["time"]["end"] < t["output"]["history_dt"]:
         raise InputError(src, "output.history_dt",
                          f"{t['output']['history_dt']} s is longer than time.end {t['time']['end']} s")
+
+
+def _check_stowage(src, scene, raw, t):
+    """[stowage]: coiled scenes only; the payout law's keys; bundles on webs."""
+    st, given = t["stowage"], raw.get("stowage") or {}
+    pattern = t["fold"]["pattern"]
+    if pattern not in ("star", "coiled"):
+        if given:
+            key = next(iter(given))
+            raise InputError(src, f"stowage.{key}", f"only a coiled scene has a stowage "
+                             f"(fold.pattern = '{pattern}')")
+        for key in st:
+            st[key] = None
+        return
+    if st["coil"] is None:
+        st["coil"] = "held"
+    rate_keys = [k for k in ("payout_rate", "payout_length") if st[k] is not None]
+    if st["payout"] == "rate":
+        if st["coil"] != "held":
+            raise InputError(src, "stowage.payout", "a rate payout needs stowage.coil = 'held'")
+        if not rate_keys:
+            raise InputError(src, "stowage.payout_rate", "required by stowage.payout = 'rate' "
+                             "(or give stowage.payout_length)")
+        if len(rate_keys) == 2:
+            raise InputError(src, "stowage.payout_length",
+                             "give either stowage.payout_rate or stowage.payout_length, not both")
+        table = st["payout_length"]
+        if table is not None:
+            times, lengths = zip(*table)
+            if any(b <= a for a, b in zip(times, times[1:])) or times[0] < 0:
+                raise InputError(src, "stowage.payout_length", "the times must be >= 0 and "
+                                 f"increase, got {list(times)} s")
+            if any(b < a for a, b in zip(lengths, lengths[1:])) or lengths[0] < 0:
+                raise InputError(src, "stowage.payout_length", "the lengths must be >= 0 and "
+                                 f"never decrease, got {list(lengths)} m")
+    elif rate_keys:
+        raise InputError(src, f"stowage.{rate_keys[0]}", "used only with stowage.payout = 'rate'")
+    if st["bundle"] == "none":
+        if st["bundle_release"] is not None:
+            raise InputError(src, "stowage.bundle_release", "used only with a bundle "
+                             "(stowage.bundle = 'until_length' or 'until_time')")
+        return
+    if scene != "web":
+        raise InputError(src, "stowage.bundle", "bundles gather a web's levels: a tether "
+                         "scene has none")
+    if st["bundle_release"] is None:
+        raise InputError(src, "stowage.bundle_release",
+                         f"required by stowage.bundle = '{st['bundle']}'")
+    if st["bundle"] == "until_length" and not st["bundle_release"] <= 1.0:
+        raise InputError(src, "stowage.bundle_release", "a fraction of the arm length in "
+                         f"(0, 1], got {st['bundle_release']:g}")
 
 
 def _check_sizes(src, scene, t):

@@ -7,6 +7,7 @@ valid-looking extremes (1e-300, 1e300) can break are checked before anything run
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -17,6 +18,7 @@ from meshgen.checks import MeshValueError, check_mesh
 from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
 from spinweb_fe.errors import InputError
+from spinweb_fe.fe.coil import BUNDLES, build_coil, rate_table
 from spinweb_fe.fe.control import Control, make_control
 from spinweb_fe.fe.model import Model, build_model, choose_dt
 from spinweb_fe.fe.state import State, initial_state
@@ -72,11 +74,34 @@ def build_mesh(case) -> Mesh:
     return mesh
 
 
+def eq7_line_density(mesh: Mesh, arm_mass: float) -> np.ndarray:
+    """(m,) line density [kg/m] of tethers carrying ``arm_mass`` each as the paper's Eq. 7,
+    rho_L(s) = 2 m (H - s) / H^2: each element's mean over its length, (2 m / H^2)(H - s_mid),
+    so the lumped masses hold the profile's exact element masses."""
+    s = mesh.node_arm_coord[mesh.elem_nodes].mean(axis=1)
+    H = mesh.arm_length
+    return 2.0 * arm_mass * (H - s) / (H * H)
+
+
 def model_from_case(case, mesh: Mesh) -> Model:
-    """Model for a validated case and its mesh."""
+    """Model for a validated case and its mesh (with its stowed coil, if any)."""
     cab, hub = case.cable, case.hub
-    return build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
-                       hub_radius=hub.radius, hub_inertia=hub.inertia, hub_friction=hub.friction)
+    arm_mass = case.tethers.arm_mass if case.scene == "tethers" else None
+    model = build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
+                        hub_radius=hub.radius, hub_inertia=hub.inertia,
+                        hub_friction=hub.friction,
+                        line_density=None if arm_mass is None else eq7_line_density(mesh,
+                                                                                    arm_mass))
+    st = case.stowage
+    if st.coil is None or (st.coil == "loose" and st.bundle == "none"):
+        return model  # nothing to hold or bundle: the kernels skip the coil
+    payout = None
+    if st.payout == "rate":
+        payout = (rate_table(st.payout_rate) if st.payout_rate is not None
+                  else tuple(np.array(c) for c in zip(*st.payout_length)))
+    coil = build_coil(mesh, model.elements.nodes, model.nodes.mass, payout,
+                      (BUNDLES[st.bundle].code, st.bundle_release or 0.0))
+    return dataclasses.replace(model, coil=coil)
 
 
 def control_from_case(case) -> Control:
@@ -99,7 +124,7 @@ def prepare(case) -> Scene:
                              f"must equal the prescribed hub rate at t = 0 ({w_law:g} rad/s) "
                              f"for control.law = '{control.law.name}'")
     _check_model(case, model)
-    state = initial_state(model, omega0, case.initial.spin)
+    state = initial_state(model, omega0, case.initial.spin, case.stowage.coil == "held")
     dt = choose_dt(model, case.time.cfl, case.time.dt, case.output.history_dt)
     n_steps = case.time.end / dt
     if not n_steps <= MAX_STEPS:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from meshgen.registry import TETHER_FOLDS, TIES, TOPOLOGIES, WEB_FOLDS, WRAP_SIGN
+from spinweb_fe.fe.coil import BUNDLES, COILS, PAYOUTS
 from spinweb_fe.fe.control import LAWS
 
 REQUIRED = object()  # marker: the key has no default
@@ -23,7 +24,8 @@ MAX_FRAMES = 100_000  # time.end / output.frame_dt
 class Field:
     """One case key: its type, default, and check.
 
-    kind: 'float' | 'int' | 'str' | 'bool'; check: 'pos' (> 0), 'nonneg' (>= 0),
+    kind: 'float' | 'int' | 'str' | 'bool' | 'table' (a list of [t, value] pairs of numbers);
+    check: 'pos' (> 0), 'nonneg' (>= 0),
     'frac' (0 < x <= 1), 'finite', 'nonzero', a tuple of allowed strings, or None.
     """
 
@@ -63,6 +65,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "count": F("int", 4, "pos", "", "number of radial tethers n"),
         "length": F("float", 50.0, "pos", "m", "tether length H"),
         "elements": F("int", 50, "pos", "", "elements per tether"),
+        "arm_mass": F("float", None, "pos", "kg", "cable mass of each tether, distributed as "
+                      "the paper's Eq. 7 (linear, zero at the tip); default: rho A H, uniform"),
     },
     "cable": {
         "youngs_modulus": F("float", 180e9, "pos", "Pa", "Young's modulus E"),
@@ -85,6 +89,19 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "wrap": F("str", "trailing", tuple(WRAP_SIGN), "", "coil direction relative to the spin"),
         "ties": F("str", "frame", tuple(TIES), "", "hub attachment of the star-folded web: the "
                   "whole hole boundary (frame) or the 4 axis nodes (axes)"),
+    },
+    "stowage": {
+        "coil": F("str", None, tuple(COILS), "", "coiled scenes: held (the coil turns with "
+                  "the hub until its arm's peel front releases it) or loose (default held)"),
+        "payout": F("str", "free", tuple(PAYOUTS), "", "free: the arm pulls the coil off; "
+                    "rate: never faster than payout_rate or payout_length"),
+        "payout_rate": F("float", None, "pos", "m/s", "payout = rate: paid-out length rate t"),
+        "payout_length": F("table", None, None, "s, m", "payout = rate: [[t, L], ...] paid-out "
+                           "length L at time t, linear between the points"),
+        "bundle": F("str", "none", tuple(BUNDLES), "", "webs: none, or each arm's gathered "
+                    "levels move as one until_length / until_time (two-stage deployment)"),
+        "bundle_release": F("float", None, "pos", "- or s", "bundles open at this fraction of "
+                            "the arm length (until_length) or time (until_time)"),
     },
     "initial": {
         "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),

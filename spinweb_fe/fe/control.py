@@ -1,11 +1,11 @@
 """Hub control laws: the one registry.
 
-A law is one :class:`Law` entry: its name, its case keys (with units and docs), a check of
-its values, the kernel code that selects its branch in :func:`spinweb_fe.fe.step.eval_control`
-(so the law costs one branch per step inside the numba loop, not a Python call), and its
+A law is one :class:`Law` entry: its name, its case keys (with units and docs), the kernel
+code that selects its branch in :func:`eval_control` below (so the law costs one branch per
+step inside the numba loop, not a Python call), and its
 analytical form (the torque or the prescribed rate as Python functions, used by the
 analytical model and by the tests that hold the kernel branch against it). Adding a law
-is one entry here plus its branch in ``eval_control``.
+is one entry here plus its branch in ``eval_control``, in this file.
 
 The parameter vector ``params`` holds the law's keys in the order of ``Law.keys``.
 """
@@ -16,8 +16,25 @@ from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
+from numba import njit
 
-from spinweb_fe.fe.step import eval_control
+
+@njit(cache=True)
+def eval_control(law, t, omega):
+    """Control law -> (prescribed, value): torque [N m], or the prescribed hub rate [rad/s].
+
+    ``law`` is a :class:`KernelLaw`; its ``code`` selects the branch of its registry entry.
+    """
+    p = law.params
+    if law.code == 1:  # torque_feedback: M = M0 (1 - omega/omega0)
+        return False, p[0] * (1.0 - omega / p[1])
+    if law.code == 2:  # spin_ramp: omega = omega_max t / ramp_time, then omega_max
+        if t < p[1]:
+            return True, p[0] * t / p[1]
+        return True, p[0]
+    if law.code == 3:  # constant_torque
+        return False, p[0]
+    return False, 0.0  # free
 
 
 @dataclass(frozen=True)
@@ -39,7 +56,7 @@ class Law:
     name : str
         Value of ``control.law``.
     code : int
-        Branch of ``fe.step.eval_control``.
+        Branch of :func:`eval_control`.
     keys : tuple of Param
         The ``[control]`` keys it needs, in parameter-vector order.
     prescribes_rate : bool

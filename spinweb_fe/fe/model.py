@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
+from spinweb_fe.fe.coil import Coil, no_coil
 
 
 class Elements(NamedTuple):
@@ -89,6 +90,15 @@ class Hub(NamedTuple):
     tied_ref: np.ndarray
 
 
+class Kernel(NamedTuple):
+    """What the step kernels see of a Model (``Model.kernel``)."""
+
+    elements: Elements
+    nodes: Nodes
+    hub: Hub
+    coil: Coil
+
+
 @dataclass(frozen=True, eq=False)
 class Model:
     """Fixed data of a run (SI units).
@@ -100,21 +110,30 @@ class Model:
     elements : Elements
     nodes : Nodes
     hub : Hub
+    coil : Coil
+        The stowed coil's levels and release laws (no levels: nothing is held).
     tip_idx : (n_arms,) int64
         The tip (corner) node of each arm.
     wave_speed : float [m/s]
-        sqrt(E / rho).
+        Largest element wave speed sqrt(E A / mu) (sqrt(E / rho) for a uniform cable).
     dt_critical : float [s]
-        min L0/c, reduced for damping by sqrt(1 + zeta^2) - zeta.
+        min over the elements of L0 / sqrt(E A / mu), reduced for damping by
+        sqrt(1 + zeta^2) - zeta.
     """
 
     mesh: Mesh
     elements: Elements
     nodes: Nodes
     hub: Hub
+    coil: Coil
     tip_idx: np.ndarray
     wave_speed: float
     dt_critical: float
+
+    @property
+    def kernel(self) -> Kernel:
+        """The arrays of the step kernels, grouped by entity."""
+        return Kernel(self.elements, self.nodes, self.hub, self.coil)
 
     @property
     def n_nodes(self) -> int:
@@ -135,7 +154,8 @@ def make_hub(radius, friction, inertia, node_mass, tied_idx, tied_ref) -> Hub:
 
 
 def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
-                hub_radius=None, hub_inertia=1.0, hub_friction=0.0, contact=True) -> Model:
+                hub_radius=None, hub_inertia=1.0, hub_friction=0.0, contact=True,
+                line_density=None) -> Model:
     """Assemble a Model from a Mesh and material / hub data (SI units).
 
     Parameters
@@ -150,24 +170,36 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
     hub_friction : float
     contact : bool
         Check cable-hub contact for the free nodes (False, or hub_radius 0, skips it).
+    line_density : (m,) float64 or None [kg/m]
+        Cable mass per length of each element (default density * area everywhere); each
+        element's wave speed sqrt(E A / mu) and damper sqrt(E A mu) follow it.
     """
     r0 = mesh.hub_radius if hub_radius is None else hub_radius
-    node_mass = lumped_mass(mesh, density * area)
+    m = mesh.n_elems
+    uniform = line_density is None
+    mu = density * area if uniform else np.asarray(line_density, np.float64)
+    node_mass = lumped_mass(mesh, mu)
     tied = np.asarray(mesh.node_sets["hub_tied"], dtype=np.int64)
     inv = np.where(node_mass > 0, 1.0 / np.where(node_mass > 0, node_mass, 1.0), 0.0)
     inv[tied] = 0.0
     hub = make_hub(r0, hub_friction, hub_inertia, node_mass, tied, mesh.node_pos[tied])
-    m = mesh.n_elems
-    c = math.sqrt(youngs_modulus / density)
     zeta = damping_ratio
-    positive = mesh.elem_rest_len[mesh.elem_rest_len > 0]
-    dt_crit = float(positive.min() / c) * (math.sqrt(1 + zeta * zeta) - zeta) if m else math.inf
     rest = np.ascontiguousarray(mesh.elem_rest_len)
-    cdamp = np.full(m, zeta * area * math.sqrt(youngs_modulus * density))
+    if uniform:  # one cable: the closed forms, as before per-element data existed
+        c = math.sqrt(youngs_modulus / density)
+        positive = rest[rest > 0]
+        dt_crit = float(positive.min() / c) if m else math.inf
+        cdamp = np.full(m, zeta * area * math.sqrt(youngs_modulus * density))
+    else:
+        speed = np.sqrt(youngs_modulus * area / mu)
+        c = float(speed.max()) if m else 0.0
+        dt_crit = float(np.min(rest / speed)) if m else math.inf
+        cdamp = zeta * np.sqrt(youngs_modulus * area * mu)
+    dt_crit *= math.sqrt(1 + zeta * zeta) - zeta
     elements = Elements(np.ascontiguousarray(mesh.elem_nodes), rest, 1.0 / rest,
                         np.full(m, youngs_modulus * area), cdamp, bool(np.any(cdamp > 0.0)))
     nodes = Nodes(node_mass, inv, (inv > 0) & bool(contact and r0 > 0))
-    return Model(mesh=mesh, elements=elements, nodes=nodes, hub=hub,
+    return Model(mesh=mesh, elements=elements, nodes=nodes, hub=hub, coil=no_coil(mesh.n_arms),
                  tip_idx=np.asarray(mesh.node_sets["tips"], dtype=np.int64),
                  wave_speed=c, dt_critical=dt_crit)
 

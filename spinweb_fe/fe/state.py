@@ -7,7 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.fe.step import place_tied
+from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
+from spinweb_fe.fe.hub import place_rigid
 
 
 class HubState(NamedTuple):
@@ -19,10 +20,13 @@ class HubState(NamedTuple):
         theta_n, counter-clockwise positive.
     rate : (1,) float64 [rad/s]
         omega_{n-1/2} (omega_0 before the run starts).
+    inertia : (1,) float64 [kg m^2]
+        Effective inertia now: the hub, the tied nodes and the held coil, sum m r^2.
     """
 
     angle: np.ndarray
     rate: np.ndarray
+    inertia: np.ndarray
 
 
 class Totals(NamedTuple):
@@ -34,7 +38,7 @@ class Totals(NamedTuple):
 
 
 class State(NamedTuple):
-    """Positions, half-step velocities, hub state, accumulated totals and the step count.
+    """Positions, half-step velocities, active masses, hub and coil state, totals, step.
 
     Attributes
     ----------
@@ -42,7 +46,11 @@ class State(NamedTuple):
         x_n.
     node_vel : (n, 3) float64 [m/s]
         v_{n-1/2} (v_0 before the run starts, see ``run.loop.start``).
+    node_mass, node_inv_mass : (n,) float64 [kg], [1/kg]
+        The masses the node update uses now: the model's for a free node, 0 for a node that
+        moves with the hub (tied, held) or with its bundle, a bundle's mass on its spine node.
     hub : HubState
+    coil : spinweb_fe.fe.coil.CoilState
     totals : Totals
     step : (1,) int64
         n.
@@ -52,7 +60,10 @@ class State(NamedTuple):
 
     node_pos: np.ndarray
     node_vel: np.ndarray
+    node_mass: np.ndarray
+    node_inv_mass: np.ndarray
     hub: HubState
+    coil: CoilState
     totals: Totals
     step: np.ndarray
     time: np.ndarray
@@ -75,22 +86,41 @@ def to_arrays(state: State) -> dict:
 
 def from_arrays(arrays: dict) -> State:
     """Inverse of :func:`to_arrays` (KeyError names a missing field)."""
-    return State(
-        node_pos=arrays["node_pos"], node_vel=arrays["node_vel"],
-        hub=HubState(*(arrays[f"hub/{k}"] for k in HubState._fields)),
-        totals=Totals(*(arrays[f"totals/{k}"] for k in Totals._fields)),
-        step=np.asarray(arrays["step"], dtype=np.int64), time=arrays["time"])
+    nested = {"hub": HubState, "coil": CoilState, "totals": Totals}
+    kw = {}
+    for name in State._fields:
+        if name in nested:
+            kw[name] = nested[name](*(arrays[f"{name}/{k}"] for k in nested[name]._fields))
+        else:
+            kw[name] = arrays[name]
+    kw["step"] = np.asarray(kw["step"], dtype=np.int64)
+    return State(**kw)
 
 
-def initial_state(model, omega: float, spin: str = "all") -> State:
+def initial_state(model, omega: float, spin: str = "all", held: bool = True) -> State:
     """Initial positions from the mesh; rigid spin omega [rad/s] of hub and web ('all') or of
-    the hub and tied nodes only ('hub'). Velocities are v_0 (see ``run.loop.start``)."""
+    the hub and what moves with it only ('hub'). A coiled model's coil is ``held`` (only its
+    tip level free) or loose. Velocities are v_0 (see ``run.loop.start``)."""
     pos = np.array(model.mesh.node_pos, dtype=np.float64)
     vel = np.zeros_like(pos)
     if spin == "all":
         vel[:, 0] = -omega * pos[:, 1]
         vel[:, 1] = omega * pos[:, 0]
-    place_tied(pos, vel, model.hub.tied_idx, model.hub.tied_ref, 0.0, omega)
-    return State(pos, vel, HubState(np.zeros(1), np.array([float(omega)])),
+    hub, coil = model.hub, model.coil
+    place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, 0.0, omega)
+    cs = coil_start(coil, held)
+    mass, inv = model.nodes.mass.copy(), model.nodes.inv_mass.copy()
+    spans = [np.arange(coil.level_ptr[coil.arm_ptr[k] + f], coil.level_ptr[coil.arm_ptr[k + 1]])
+            for k, f in enumerate(cs.front)]
+    held_nodes = coil.level_nodes[np.concatenate(spans)] if spans else np.zeros(0, np.int64)
+    mass[held_nodes] = 0.0
+    inv[held_nodes] = 0.0
+    for k, f in enumerate(cs.front):  # the free levels, bundled or not
+        level_masses(coil, cs, model.nodes, mass, inv, coil.arm_ptr[k], coil.arm_ptr[k] + f,
+                     bool(cs.bundled[k]))
+    place_held(coil, cs, pos, vel, 0.0, omega)
+    inertia = hub.j_eff + held_inertia(coil, cs, model.nodes)
+    return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),
+                                               np.array([inertia])), cs,
                  Totals(np.zeros(1), np.zeros(1), np.zeros(1)), np.zeros(1, np.int64),
                  np.zeros(1))

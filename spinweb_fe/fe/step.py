@@ -9,12 +9,16 @@ Central differences with half-step velocities (Kratos / LS-DYNA style):
     x_{n+1}    = x_n + dt v_{n+1/2};  theta_{n+1} = theta_n + dt omega_{n+1/2}
     tied nodes : x = R(theta_{n+1}) x_hub
 
-The kernels take the named data of :mod:`spinweb_fe.fe.model` (``Elements``, ``Nodes``,
-``Hub``, ``Law``), :mod:`spinweb_fe.fe.state` (``State``) and ``Recording`` below. Every
-kernel and the helpers it calls live in this module (``cache=True`` does not see edits to
-jitted helpers in other files); constants come in as arguments, never as module globals.
-The element pass uses ``error_model="numpy"`` so that divisions carry no Python
-zero-division check (a branch per element); its divisor is never zero.
+    held coil  : x = R(theta_{n+1}) x_hub; then the peel fronts and bundles (fe.coil)
+
+The kernels take the named data of :mod:`spinweb_fe.fe.model` (``Model.kernel``: elements,
+nodes, hub, coil), :mod:`spinweb_fe.fe.state` (``State``), the law (``KernelLaw``) and
+``Recording`` below. The features they call live in their own files of ``fe/`` (contact, hub,
+coil, control): the numba cache of every ``fe`` kernel is stamped with the whole folder
+(:mod:`spinweb_fe.fe.cache`), so an edit of a helper recompiles its callers. Constants come
+in as arguments, never as module globals. The element pass uses ``error_model="numpy"`` so
+that divisions carry no Python zero-division check (a branch per element); its divisor is
+never zero.
 """
 
 from __future__ import annotations
@@ -23,6 +27,12 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
+
+from spinweb_fe.fe.coil import (front_row, gather_bundles, held_moment, open_bundles,
+                                payout_allowed, place_held, release_fronts, scatter_bundles)
+from spinweb_fe.fe.contact import contact_node
+from spinweb_fe.fe.control import eval_control
+from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
 
 #: columns of the per-record scalar table that ``advance`` writes (see
 #: spinweb_fe.record.history for units and meaning)
@@ -44,6 +54,9 @@ class Recording(NamedTuple):
         Scalar columns of each row.
     probe_pos, probe_vel : (rows, p, 3) float64 [m], [m/s]
         Probe positions x_n and mean velocities (v_{n-1/2} + v_{n+1/2}) / 2.
+    arm_table : (rows, n_arms, 5) float64
+        Per arm: front and next outer level coordinates [m], pinned on the rim (1/0), held
+        back by the payout law (1/0), allowed payout [m] (see record_arms).
     """
 
     every: int
@@ -51,109 +64,8 @@ class Recording(NamedTuple):
     table: np.ndarray
     probe_pos: np.ndarray
     probe_vel: np.ndarray
+    arm_table: np.ndarray
 
-
-@njit(cache=True)
-def eval_control(law, t, omega):
-    """Control law -> (prescribed, value): torque [N m], or the prescribed hub rate [rad/s].
-
-    ``law.code`` selects the branch (the registry of spinweb_fe.fe.control names them).
-    """
-    p = law.params
-    if law.code == 1:  # torque_feedback: M = M0 (1 - omega/omega0)
-        return False, p[0] * (1.0 - omega / p[1])
-    if law.code == 2:  # spin_ramp: omega = omega_max t / ramp_time, then omega_max
-        if t < p[1]:
-            return True, p[0] * t / p[1]
-        return True, p[0]
-    if law.code == 3:  # constant_torque
-        return False, p[0]
-    return False, 0.0  # free
-
-
-@njit(cache=True)
-def hub_torque_of(pos, force, tied_idx):
-    """z-moment of the element forces acting on the tied nodes, sum (x f_y - y f_x)."""
-    tau = 0.0
-    for k in range(tied_idx.shape[0]):
-        i = tied_idx[k]
-        tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
-    return tau
-
-
-@njit(cache=True)
-def hub_torque_buffers(pos, forces, tied_idx):
-    """hub_torque_of summed over the per-thread force buffers (nt, n, 3)."""
-    tau = 0.0
-    for c in range(forces.shape[0]):
-        tau += hub_torque_of(pos, forces[c], tied_idx)
-    return tau
-
-
-@njit(cache=True)
-def contact_node(i, pos, vel, force, m, r0, mu, j_eff, omega, dw_force, dt):
-    """Kinematic cable-hub contact of node i: radial impulse along x_n so that |x_{n+1}| >= r0.
-
-    The impulse acts along the radial of x_n (no moment about the axis) and at most stops the
-    inward motion (it never pushes outwards). Friction (Coulomb, coefficient mu) adds a
-    tangential impulse bounded by mu times the normal impulse; its reaction turns the hub.
-    ``dw_force`` is the hub rate increment of this step's torques. Returns (omega, dissipated
-    energy [J]): the kinetic energy the impulse removes, less the part this step's force put
-    into the removed velocity (dt f . dv / 2), so that a node resting on the hub under a steady
-    load dissipates nothing, as in the continuous problem.
-    """
-    px = pos[i, 0] + dt * vel[i, 0]
-    py = pos[i, 1] + dt * vel[i, 1]
-    if px * px + py * py >= r0 * r0:
-        return omega, 0.0
-    rn = np.sqrt(pos[i, 0] ** 2 + pos[i, 1] ** 2)
-    if rn == 0.0:
-        return omega, 0.0
-    ex = pos[i, 0] / rn
-    ey = pos[i, 1] / rn
-    pr = px * ex + py * ey
-    disc = pr * pr - (px * px + py * py) + r0 * r0
-    s = -pr + np.sqrt(max(disc, 0.0))  # |p + s e| = r0, s >= 0
-    vx0 = vel[i, 0]
-    vy0 = vel[i, 1]
-    dvn = min(s / dt, max(-(vx0 * ex + vy0 * ey), 0.0))
-    if dvn <= 0.0:
-        return omega, 0.0
-    e_before = 0.5 * m * (vx0 * vx0 + vy0 * vy0)
-    vel[i, 0] += dvn * ex
-    vel[i, 1] += dvn * ey
-    diss = 0.0
-    if mu > 0.0:
-        # slip relative to the hub surface; the stick impulse includes the hub's response
-        vrel = (-ey * vel[i, 0] + ex * vel[i, 1]) - omega * rn
-        p_stick = -vrel / (1.0 / m + rn * rn / j_eff)
-        p_max = mu * m * dvn
-        p = min(max(p_stick, -p_max), p_max)
-        w0 = omega
-        vel[i, 0] += -ey * p / m
-        vel[i, 1] += ex * p / m
-        omega -= p * rn / j_eff  # equal and opposite moment on the hub
-        diss += 0.5 * j_eff * (w0 * w0 - omega * omega) + 0.5 * j_eff * dw_force * (omega - w0)
-    diss += e_before - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2)
-    diss += 0.5 * dt * (force[i, 0] * (vel[i, 0] - vx0) + force[i, 1] * (vel[i, 1] - vy0))
-    return omega, diss
-
-
-@njit(cache=True)
-def place_tied(pos, vel, tied_idx, tied_ref, theta, omega):
-    """Tied nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""
-    c = np.cos(theta)
-    s = np.sin(theta)
-    for k in range(tied_idx.shape[0]):
-        i = tied_idx[k]
-        x = c * tied_ref[k, 0] - s * tied_ref[k, 1]
-        y = s * tied_ref[k, 0] + c * tied_ref[k, 1]
-        pos[i, 0] = x
-        pos[i, 1] = y
-        pos[i, 2] = tied_ref[k, 2]
-        vel[i, 0] = -omega * y
-        vel[i, 1] = omega * x
-        vel[i, 2] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -232,18 +144,30 @@ def accumulate_threads(elems, pos, vel, forces, bounds, record, out):
         out[c, 2] = pd
 
 
+class NodeMotion(NamedTuple):
+    """The node arrays of the State that the node pass updates or reads (a flat tuple, as
+    the parallel kernels take it)."""
+
+    pos: np.ndarray
+    vel: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+
+
 @njit(cache=True)
-def integrate_nodes(nodes, hub, pos, vel, force, omega, dw_force, dt, lo, hi, record, out):
+def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, record, out):
     """Fused node pass over nodes lo..hi-1: v += dt f/m, cable-hub contact, x += dt v, and
-    f = 0 for the next step. Tied nodes (inv_mass 0) are skipped. On record steps ``out[:4]``
-    receives the kinetic energy and angular momentum sums before and after the update.
-    Returns (omega, contact dissipation [J])."""
-    inv_mass = nodes.inv_mass
-    node_mass = nodes.mass
+    f = 0 for the next step. ``mv``: :class:`NodeMotion`; nodes with no active mass (tied,
+    held, inside a bundle) are skipped; ``j_eff`` [kg m^2] is the hub's inertia now. On
+    record steps ``out[:4]`` receives the kinetic energy and angular momentum sums before
+    and after the update. Returns (omega, contact dissipation [J])."""
+    pos = mv.pos
+    vel = mv.vel
+    inv_mass = mv.inv_mass
+    node_mass = mv.mass
     contact = nodes.contact
     r0 = hub.radius
     mu = hub.friction
-    j_eff = hub.j_eff
     ke0 = 0.0
     ke1 = 0.0
     lz0 = 0.0
@@ -285,7 +209,7 @@ def integrate_nodes(nodes, hub, pos, vel, force, omega, dw_force, dt, lo, hi, re
 
 
 @njit(cache=True, parallel=True)
-def integrate_threads(nodes, hub, pos, vel, forces, omega, dw_force, dt, nbounds, record, out):
+def integrate_threads(nodes, hub, mv, forces, omega, dw_force, j_eff, dt, nbounds, record, out):
     """Node pass on several threads (frictionless contact only: friction turns the hub node by
     node). Block b sums the thread buffers into forces[0] for its nodes, then integrates them;
     out[b] = (ke0, ke1, lz0, lz1, contact dissipation)."""
@@ -297,7 +221,7 @@ def integrate_threads(nodes, hub, pos, vel, forces, omega, dw_force, dt, nbounds
                 for d in range(3):
                     forces[0, i, d] += forces[c, i, d]
                     forces[c, i, d] = 0.0
-        _, diss = integrate_nodes(nodes, hub, pos, vel, forces[0], omega, dw_force, dt, lo, hi,
+        _, diss = integrate_nodes(nodes, hub, mv, forces[0], omega, dw_force, j_eff, dt, lo, hi,
                                   record, out[b])
         out[b, 4] = diss
 
@@ -323,26 +247,15 @@ def element_pass(elems, pos, vel, force, ebounds, eout, record, no_tension):
 
 
 @njit(cache=True)
-def hub_step(law, j_eff, tau, w_old, t, dt):
-    """Hub rate over the step: (torque M_n [N m], omega_{n+1/2}).
-
-    A prescribed law imposes the rate at the half step and reports the torque it takes;
-    a torque law integrates J_eff omega' = M + tau (tau: the tied-node reactions)."""
-    prescribed, value = eval_control(law, t, w_old)
-    if prescribed:
-        _, w_new = eval_control(law, t + 0.5 * dt, w_old)
-        return j_eff * (w_new - w_old) / dt - tau, w_new
-    return value, w_old + dt * (value + tau) / j_eff
-
-
-@njit(cache=True)
-def node_pass(nodes, hub, pos, vel, force, w_old, w_new, dt, nbounds, nout, sums, record):
+def node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout, sums, record):
     """Velocity and position update of every free node (one thread, or several when contact
     is frictionless). ``sums[:4]`` receives the kinetic energy and angular momentum sums.
     Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
     nt = force.shape[0]
+    mv = NodeMotion(state.node_pos, state.node_vel, state.node_mass, state.node_inv_mass)
+    j_eff = state.hub.inertia[0]
     if nt > 1 and hub.friction == 0.0:
-        integrate_threads(nodes, hub, pos, vel, force, w_new, w_new - w_old, dt, nbounds,
+        integrate_threads(nodes, hub, mv, force, w_new, w_new - w_old, j_eff, dt, nbounds,
                           record, nout)
         for k in range(5):
             sums[k] = nout[:, k].sum()
@@ -350,8 +263,8 @@ def node_pass(nodes, hub, pos, vel, force, w_old, w_new, dt, nbounds, nout, sums
     for c in range(1, nt):
         force[0] += force[c]
         force[c] = 0.0
-    return integrate_nodes(nodes, hub, pos, vel, force[0], w_new, w_new - w_old, dt, 0,
-                           pos.shape[0], record, sums)
+    return integrate_nodes(nodes, hub, mv, force[0], w_new, w_new - w_old, j_eff, dt, 0,
+                           mv.pos.shape[0], record, sums)
 
 
 @njit(cache=True)
@@ -386,15 +299,40 @@ def write_row(row, t, theta, w_old, w_new, torque, j_eff, sums, se, tmax, totals
 
 
 @njit(cache=True)
-def advance(elems, nodes, hub, law, state, force, rec, dt, nsteps):
+def record_arms(coil, cs, table, t):
+    """Per arm at a record step (see fe.coil.front_row): the front's and the next outer
+    level's arm coordinates, pinned on the rim (1/0), held back by the payout law (1/0), and
+    the paid-out length the law allows (NaN: free payout)."""
+    allowed = payout_allowed(coil, t)
+    for k in range(table.shape[0]):
+        table[k, 0], table[k, 1], table[k, 2], table[k, 3] = front_row(coil, cs, k, t)
+        table[k, 4] = allowed if np.isfinite(allowed) else np.nan
+
+
+@njit(cache=True)
+def coil_step(coil, elems, nodes, state, t_next):
+    """After a step: release the fronts that the free parts pull off the hub, then open the
+    bundles that are due."""
+    cs = state.coil
+    state.hub.inertia[0] = release_fronts(coil, cs, elems, nodes, state.node_pos,
+                                          state.node_mass, state.node_inv_mass,
+                                          state.hub.inertia[0], t_next)
+    if coil.bundle_code > 0:
+        open_bundles(coil, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
+
+
+@njit(cache=True)
+def advance(model, law, state, force, rec, dt, nsteps):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
-    ``force`` (nt, n, 3) holds one force buffer per thread (nt = 1: serial) and must be zero
-    on entry (the node pass leaves it zeroed). Row k of ``rec.table`` holds REC_COLUMNS at
-    integer step n; ``rec.probe_pos/vel`` the probe positions x_n and mean velocities.
-    Threads give the same result for a given thread count (fixed chunks, fixed reduction
-    order). Returns (status, rows): status 0 ok, 1 non-finite.
+    ``model`` is the kernel view of the Model (``Model.kernel``). ``force`` (nt, n, 3) holds
+    one force buffer per thread (nt = 1: serial) and must be zero on entry (the node pass
+    leaves it zeroed). Row k of ``rec.table`` holds REC_COLUMNS at integer step n,
+    ``rec.probe_pos/vel`` the probe positions x_n and mean velocities, ``rec.arm_table`` the
+    arm data of :func:`record_arms`. Threads give the same result for a given thread count
+    (fixed chunks, fixed reduction order). Returns (status, rows): 0 ok, 1 non-finite.
     """
+    elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     nt = force.shape[0]
     pos = state.node_pos
     vel = state.node_vel
@@ -407,26 +345,34 @@ def advance(elems, nodes, hub, law, state, force, rec, dt, nsteps):
     vprobe = np.zeros((rec.probes.shape[0], 3))
     no_tension = np.empty(0)
     totals = state.totals
+    has_coil = coil.level_nodes.shape[0] > 0
     nrec = 0
     for _ in range(nsteps):
         step = state.step[0]
         record = step % rec.every == 0
         t = step * dt
         se, tmax, pdamp = element_pass(elems, pos, vel, force, ebounds, eout, record,
-                                        no_tension)
-        tau = hub_torque_buffers(pos, force, hub.tied_idx)
+                                       no_tension)
+        tau = moment_of(pos, force, hub.tied_idx)
+        if has_coil:
+            tau += held_moment(coil, state.coil, pos, force)
+            gather_bundles(coil, state.coil, force)
         w_old = state.hub.rate[0]
-        torque, w_new = hub_step(law, hub.j_eff, tau, w_old, t, dt)
+        j_eff = state.hub.inertia[0]
+        torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
         if record:
             record_probes(rec, nrec, pos, vel, vprobe, True)
+            record_arms(coil, state.coil, rec.arm_table[nrec], t)
         theta = state.hub.angle[0]
-        w_new, dcontact = node_pass(nodes, hub, pos, vel, force, w_old, w_new, dt, nbounds,
-                                    nout, sums, record)
+        w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout,
+                                    sums, record)
+        if has_coil:
+            scatter_bundles(coil, state.coil, pos, vel)
         incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
         incr[1] = pdamp * dt
         incr[2] = dcontact
         if record:
-            write_row(rec.table[nrec], t, theta, w_old, w_new, torque, hub.j_eff, sums, se, tmax,
+            write_row(rec.table[nrec], t, theta, w_old, w_new, torque, j_eff, sums, se, tmax,
                       totals, incr)
             if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
                 return 1, nrec
@@ -439,23 +385,31 @@ def advance(elems, nodes, hub, law, state, force, rec, dt, nsteps):
         totals.contact_dissipation[0] += incr[2]
         state.step[0] = step + 1
         state.time[0] = (step + 1) * dt
-        place_tied(pos, vel, hub.tied_idx, hub.tied_ref, state.hub.angle[0], w_new)
+        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, state.hub.angle[0], w_new)
+        if has_coil:
+            place_held(coil, state.coil, pos, vel, state.hub.angle[0], w_new)
+            coil_step(coil, elems, nodes, state, (step + 1) * dt)
     return 0, nrec
 
 
 @njit(cache=True)
-def start_half_step(elems, nodes, hub, law, state, dt):
+def start_half_step(model, law, state, dt):
     """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0."""
+    elems, hub, coil = model.elements, model.hub, model.coil
     pos = state.node_pos
     vel = state.node_vel
-    force = np.zeros(pos.shape)
-    eval_elements(elems, pos, vel, force, np.zeros(elems.nodes.shape[0]), False)
+    force = np.zeros((1, pos.shape[0], 3))
+    eval_elements(elems, pos, vel, force[0], np.zeros(elems.nodes.shape[0]), False)
+    if coil.level_nodes.shape[0] > 0:
+        gather_bundles(coil, state.coil, force)
     for i in range(pos.shape[0]):
         for d in range(3):
-            vel[i, d] -= 0.5 * dt * force[i, d] * nodes.inv_mass[i]
-    tau = hub_torque_of(pos, force, hub.tied_idx)
+            vel[i, d] -= 0.5 * dt * force[0, i, d] * state.node_inv_mass[i]
+    tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil, state.coil, pos, force)
     prescribed, value = eval_control(law, 0.0, state.hub.rate[0])
     if prescribed:
         _, state.hub.rate[0] = eval_control(law, -0.5 * dt, state.hub.rate[0])
     else:
-        state.hub.rate[0] -= 0.5 * dt * (value + tau) / hub.j_eff
+        state.hub.rate[0] -= 0.5 * dt * (value + tau) / state.hub.inertia[0]
+    if coil.level_nodes.shape[0] > 0:
+        scatter_bundles(coil, state.coil, pos, vel)

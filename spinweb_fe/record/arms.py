@@ -1,75 +1,47 @@
 """Per-arm measures of the FE state, defined as in the analytical model.
 
-Each arm (tether) has a root point R on the hub rim (hub-frame angle theta_R), a tip node,
-and a *spine*: for every arm-coordinate level from the root to the tip, the outermost node(s)
-of the flat web at that level (a tether: all its nodes; a star-folded web arm: its two
-outline edges, the half sides that meet at its corner). At each history row:
+Each arm (tether) has a root point R on the hub rim (hub-frame angle theta_R, the mesh's
+``arm_root_angle``) and a tip node. As in the analytical model the arm is a straight free
+part of length L, either pivoting about R (|phi| <= pi/2) or leaving the hub tangentially
+at a departure point D after a wound angle alpha measured from R along the hub
+(|phi| = pi/2 + alpha). At each history row, per arm:
 
-- wound length w = arm coordinate (minus the root's) of the last spine level that is still,
-  together with every level before it, on the hub (planar radius <= r0 (1 + 1e-3));
-  the wrap sense s = +1 (trailing: the coil runs clockwise from its first level) or -1;
-- the departure point D is that last wound spine node; the wound angle alpha and L are
-  refined with the tangent from the tip to the rim (L = sqrt(|p|^2 - r0^2), exact for a
-  straight taut free part, continuous in time) whenever that agrees with D to within two
-  spine levels, else alpha = w / r0 and L = |tip - D|;
-- phi = -s (pi/2 + alpha) while wound (the analytical model's coiled branch,
-  |phi| = pi/2 + alpha); otherwise the angle of (tip - R) from the outward radial at R,
-  counter-clockwise positive;
-- omega_tip = (p x v)_z / |p|^2: the rate of the tip's polar angle about the hub axis.
+- a **held coil** (spinweb_fe.fe.coil) whose pinned node (the peel front, or the arm's base
+  once everything is released) lies on the rim: the arm leaves the coil tangentially at the
+  tangent point D from the tip (wound over alpha from R, continued in time), L = |tip - D|,
+  phi = -w (pi/2 + alpha) with w the coil's wrap sign (+1 trailing: clockwise). The step
+  loop records the front F (arm coordinate s_F, wound over alpha_F) and whether a rate
+  payout holds it back; then, if D lies behind F (alpha < alpha_F), the arm pivots about
+  F: L = |tip - F|, phi = -w alpha_F + beta, beta the angle of (tip - F) from the outward
+  radial at F (equal to the tangent branch where the arm just touches the rim at F). The
+  tangent is not clipped to the front under a free payout: the discrete chain kinks over
+  about one element at the front, so the front lags the straight arm's departure by up to
+  one level while the tip, hub and tension follow the continuum (docs/validation.md);
+- otherwise the arm is free: **pivoting**, phi = the angle of (tip - R) from the outward
+  radial at R, counter-clockwise positive, continued in time (no jump at +-pi), L = |tip - R|;
+  or **wrapped** once that line would cross the hub (|phi| > pi/2): the arm has wound on
+  the hub in the direction it swung, c = -sign(phi), D is the tangent point from the tip on
+  that side, alpha its angle from R along the wrap (continued in time over several turns),
+  phi = -c (pi/2 + alpha), L = the tangent length; back to pivoting when alpha reaches 0.
 
-Measuring the wound part by contact (not by the tip's angle) stays right when a slack
-coil slides over a frictionless hub.
+Every branch meets the next continuously for a straight arm (D = R at alpha = 0, phi =
++-pi/2 on both sides), so L and phi have no jumps from the measure itself. Held and
+coiled-at-start arms start wound over their whole coil. omega_tip = (p x v)_z / |p|^2, the
+rate of the tip's polar angle about the hub axis. The same rows give a held coil's front
+coordinate and the payout speed, the rate of its paid-out length H_coord - s_D (H_coord: the
+tip's arm coordinate), and log when a rate payout waits for its arm.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
-from meshgen.fold import half_axes
+log = logging.getLogger(__name__)
 
-CONTACT_TOL = 1e-3  # relative radius tolerance for "on the hub"
-
-
-def arm_probes(mesh):
-    """Probe nodes of the arm measures: tips first, then the spine of each arm.
-
-    Returns
-    -------
-    probes : (p,) int64          node indices (tips are probes[:n_arms])
-    spine_arm : (p - n,) int64   arm of each spine probe
-    spine_level : (p - n,) int64 level index (0 = root level) of each spine probe
-    spine_coord : (p - n,) float arm coordinate of each spine probe, minus the root's [m]
-    """
-    tips = np.asarray(mesh.node_sets["tips"], dtype=np.int64)
-    n_arms = mesh.n_arms
-    arm, coord = mesh.node_arm, mesh.node_arm_coord
-    ref = mesh.node_ref
-    s_idx, s_arm, s_lev, s_coord = [], [], [], []
-    if n_arms == len(tips):
-        # outermost: largest gauge max_j P.u_j over the half-axes u_j (max(|x|, |y|) for
-        # the square web): the web's outline edges that become the arm's edges
-        reach = np.max(ref[:, :2] @ half_axes(mesh.arm_root_angle).T, axis=1)
-        # a web's spine keeps only the levels that reach its outline: levels of interior
-        # nodes alone (a mesh whose lines are not parallel to the half-axes) are slack
-        # concertina points that lift off the hub while the taut edges stay wound
-        edge = reach.max() - 1e-9 * max(1.0, reach.max()) if "boundary" in mesh.node_sets \
-            else -np.inf
-        for k in range(n_arms):
-            nodes = np.flatnonzero((arm == k) & (coord >= mesh.arm_root_coord - 1e-9))
-            groups = [(lev, nodes[np.abs(coord[nodes] - lev) < 1e-9])
-                      for lev in np.unique(np.round(coord[nodes], 9))]
-            groups = [(lev, g) for lev, g in groups if reach[g].max() >= edge]
-            for j, (lev, group) in enumerate(groups):
-                outer = group[reach[group] >= reach[group].max() - 1e-9]
-                s_idx += list(outer)
-                s_arm += [k] * len(outer)
-                s_lev += [j] * len(outer)
-                s_coord += [lev - mesh.arm_root_coord] * len(outer)
-    probes = np.concatenate([tips, np.asarray(s_idx, dtype=np.int64)])
-    return (probes, np.asarray(s_arm, np.int64), np.asarray(s_lev, np.int64),
-            np.asarray(s_coord, float))
+PIVOT, WRAPPED = 0, 1
 
 
 def deployed_length(mesh) -> np.ndarray:
@@ -84,25 +56,32 @@ def deployed_length(mesh) -> np.ndarray:
     return np.hypot(*(mesh.node_ref[tips, :2] - root).T)
 
 
+def _near(x, ref):
+    """x shifted by whole turns to lie within pi of ref."""
+    return x + 2 * math.pi * round((ref - x) / (2 * math.pi))
+
+
 class ArmTracker:
-    """Turns recorded probe positions / velocities into L, phi, omega_tip per arm.
+    """Turns the recorded tip positions / velocities (and a held coil's fronts) into L, phi,
+    omega_tip per arm.
 
     Parameters
     ----------
     mesh : Mesh
-    r0 : float [m]   hub radius (0: no hub, nothing is ever wound)
-    contact_tol : float
-        Smallest relative radius tolerance of "on the hub" (it grows with the spine spacing).
+    r0 : float [m]
+        Hub radius (0: no hub, nothing is ever wound).
 
-    The tracker's memory from row to row is the previous arm angle and whether the arm was
-    wound (:meth:`memory`, :meth:`restore`: a restarted run continues it).
+    Its memory from row to row (:meth:`memory`, :meth:`restore`: a restarted run continues
+    it): per arm the branch (pivot / wrapped), the wrap direction, the last phi and alpha,
+    the last departure coordinate, whether a rate payout waits and whether the held coil's
+    departure has reached the root (the coil is gone: the arm is measured as free).
     """
 
     name = "arms"
 
-    def __init__(self, mesh, r0, contact_tol=CONTACT_TOL):
-        self.probes, self.s_arm, self.s_lev, self.s_coord = arm_probes(mesh)
-        tips = mesh.node_sets["tips"]
+    def __init__(self, mesh, r0):
+        tips = np.asarray(mesh.node_sets["tips"], dtype=np.int64)
+        self.probes = tips
         self.n = len(tips)
         roots = mesh.arm_root_angle
         if len(roots) != self.n:  # no arm data: measure each tip from its own radial
@@ -110,82 +89,138 @@ class ArmTracker:
             roots = np.arctan2(ref[:, 1], ref[:, 0])
         self.root = np.asarray(roots, float)
         self.r0 = float(r0)
-        self.prev_phi = np.full(self.n, np.nan)  # for a continuous (unwrapped) free-arm angle
-        self.prev_wound = np.zeros(self.n, bool)
-        gaps = [np.max(np.diff(np.unique(self.s_coord[self.s_arm == k])))
-                for k in range(self.n) if np.sum(self.s_arm == k) > 1]
-        self.gap = float(max(gaps)) if gaps else 0.0
-        # "on the hub": a spinning coil of straight elements of length g lifts off the rim by
-        # about r0 (g/r0)^2 / 24, so the tolerance grows with the spine spacing
-        self.tol = max(contact_tol, (self.gap / self.r0) ** 2 / 12) if self.r0 > 0 else 0.0
+        self.tip_coord = float(mesh.arm_length)
+        self.root_coord = float(mesh.arm_root_coord)
+        self.wrap = float(mesh.wrap or 1)
+        coiled = mesh.wrap != 0 and self.r0 > 0
+        self.mode = np.full(self.n, WRAPPED if coiled else PIVOT)
+        self.sense = np.full(self.n, self.wrap)  # c: +1 wound clockwise from R
+        self.prev_alpha = np.full(self.n, (self.tip_coord - self.root_coord) / self.r0
+                                  if coiled else 0.0)
+        self.prev_phi = np.full(self.n, np.nan)
+        self.prev_sd = np.full(self.n, np.nan)  # departure coordinate of the previous row
+        self.waiting = np.zeros(self.n, bool)  # a rate payout's front waits for its arm
+        self.paid_out = np.zeros(self.n, bool)  # the held coil's departure reached the root
 
     def memory(self) -> dict:
         """What the measure carries from row to row (copies)."""
-        return {"prev_phi": self.prev_phi.copy(), "prev_wound": self.prev_wound.copy()}
+        return {k: getattr(self, k).copy() for k in
+                ("mode", "sense", "prev_alpha", "prev_phi", "prev_sd", "waiting", "paid_out")}
 
     def restore(self, memory: dict) -> None:
         """Continue from :meth:`memory` of an earlier run (same mesh)."""
-        self.prev_phi = np.array(memory["prev_phi"], dtype=float)
-        self.prev_wound = np.array(memory["prev_wound"], dtype=bool)
+        for k, v in memory.items():
+            if hasattr(self, k):
+                setattr(self, k, np.array(v, dtype=getattr(self, k).dtype))
 
-    def update(self, probe_pos, probe_vel, hub_angle):
-        """(T, p, 3) probe positions / velocities and (T,) hub angle -> (L, phi, omega_tip),
-        each (T, n_arms)."""
+    def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0) -> dict:
+        """History columns of T rows, each (T, n_arms): ``arm_length``, ``arm_angle``,
+        ``tip_omega``, and with a held coil's ``arm_table`` (T, n_arms, 5) from the step loop
+        also ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under
+        a rate payout, ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
+        ``hub_angle``."""
+        L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table)
+        out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip}
+        if arm_table is None:
+            return out
+        prev = np.vstack([self.prev_sd[None, :], sd[:-1]])
+        speed = np.where(np.isfinite(prev) & np.isfinite(sd), (prev - sd) / row_dt, 0.0)
+        if len(sd):
+            self.prev_sd = sd[-1].copy()
+        out.update(payout_front=arm_table[..., 0].copy(), payout_speed=speed)
+        if np.all(np.isfinite(arm_table[..., 4])):
+            out["payout_allowed"] = arm_table[..., 4].copy()
+            self._watch(arm_table, sd, rows["time"])
+        return out
+
+    def update(self, probe_pos, probe_vel, hub_angle, arm_table=None):
+        """(T, n_arms, 3) tip positions / velocities, (T,) hub angle and optionally a held
+        coil's (T, n_arms, 5) arm table -> (L, phi, omega_tip, departure coordinate), each
+        (T, n_arms); the departure is NaN without a held coil."""
         T, n = probe_pos.shape[0], self.n
         tip_p, tip_v = probe_pos[:, :n], probe_vel[:, :n]
-        L = np.empty((T, n))
-        phi = np.empty((T, n))
-        r0 = self.r0
-        sp = probe_pos[:, n:, :2]
-        on_hub = (np.hypot(sp[..., 0], sp[..., 1]) <= r0 * (1 + self.tol) if r0 > 0
-                  else np.zeros(sp.shape[:2], bool))
+        L, phi, sd = np.empty((T, n)), np.empty((T, n)), np.full((T, n), np.nan)
         for k in range(n):
-            sel = np.flatnonzero(self.s_arm == k)
-            lev = self.s_lev[sel]
-            nlev = lev.max() + 1 if len(sel) else 0
-            level_on = np.ones((T, nlev), bool)
-            for j in range(nlev):
-                level_on[:, j] = on_hub[:, sel[lev == j]].all(axis=1)
-            run = np.cumprod(level_on, axis=1).sum(axis=1)  # leading levels on the hub
-            gap = np.max(np.diff(np.unique(self.s_coord[sel]))) if nlev > 1 else 0.0
             for t in range(T):
-                L[t, k], phi[t, k] = self._measure(k, t, hub_angle[t], tip_p[t, k], sp[t], sel,
-                                                   lev, int(run[t]), gap)
+                tip = tip_p[t, k]
+                row = None if arm_table is None else arm_table[t, k]
+                held = row is not None and row[2] > 0.5 and not self.paid_out[k]
+                if held:
+                    L[t, k], phi[t, k], sd[t, k] = self._held(k, row, hub_angle[t], tip)
+                    self.paid_out[k] = sd[t, k] <= self.root_coord and row[3] < 0.5
+                if not held or self.paid_out[k]:  # the departure reached the root
+                    if row is not None and not held:
+                        sd[t, k] = row[0]
+                    L[t, k], phi[t, k] = self._free(k, hub_angle[t], tip)
+                    L[t, k], phi[t, k] = self._free(k, hub_angle[t], tip)
                 self.prev_phi[k] = phi[t, k]
         px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)
         omega_tip = (px * tip_v[..., 1] - py * tip_v[..., 0]) / r2
-        return L, phi, omega_tip
+        return L, phi, omega_tip, sd
 
-    def _measure(self, k, t, hub_angle, tip, sp, sel, lev, run, gap):
+    def _tangent(self, tip, c):
+        """(inertial angle of the tangent point from the tip on the side of a coil wound in
+        direction c, tangent length)."""
+        rho = math.hypot(tip[0], tip[1])
+        l_tan = math.sqrt(max(rho * rho - self.r0 * self.r0, 0.0))
+        return math.atan2(tip[1], tip[0]) + c * math.atan2(l_tan, self.r0), l_tan
+
+    def _held(self, k, row, hub_angle, tip):
+        """(L, phi, departure coordinate) of a held coil: tangentially from the tangent
+        point, or pivoting about the front F when a rate payout holds F back and the
+        tangent point lies behind it (``row``: the arm's record of the step loop)."""
+        w, r0 = self.wrap, self.r0
+        th_r = hub_angle + self.root[k]
+        th_d, l_tan = self._tangent(tip, w)
+        alpha = _near(w * (th_r - th_d), self.prev_alpha[k])
+        self.mode[k], self.sense[k], self.prev_alpha[k] = WRAPPED, w, alpha
+        alpha_f = (row[0] - self.root_coord) / r0
+        if row[3] < 0.5 or alpha >= alpha_f:
+            return l_tan, -w * (0.5 * math.pi + alpha), self.root_coord + r0 * alpha
+        th = th_r - w * alpha_f  # the pinned front F
+        ex, ey = math.cos(th), math.sin(th)
+        qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
+        beta = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
+        return math.hypot(qx, qy), -w * alpha_f + beta, row[0]
+
+    def _free(self, k, hub_angle, tip):
+        """(L, phi) of a free arm: pivoting about R, or wrapped on the hub."""
         r0 = self.r0
-        th_root = hub_angle + self.root[k]
-        ex, ey = math.cos(th_root), math.sin(th_root)
-        if run >= 2:  # something is wound: departure point D = last wound spine node
-            d = sp[sel[lev == run - 1][0]]
-            q0, q1 = sp[sel[lev == 0][0]], sp[sel[lev == 1][0]]
-            sense = 1.0 if q0[0] * q1[1] - q0[1] * q1[0] < 0 else -1.0  # clockwise: trailing
-            a_d = self.s_coord[sel[lev == run - 1][0]] / r0
-            # refine with the tangent from the tip (exact for a straight, taut free part)
-            rho = math.hypot(tip[0], tip[1])
-            l_tan = math.sqrt(max(rho * rho - r0 * r0, 0.0))
-            th_t = math.atan2(tip[1], tip[0]) + sense * math.atan2(l_tan, r0)
-            # angle from D on to the tangent point, along the coil (the coil may slide on a
-            # frictionless hub, so measure from D, not from the root)
-            delta = sense * (math.atan2(d[1], d[0]) - th_t)
-            delta -= 2 * math.pi * round(delta / (2 * math.pi))
-            if abs(delta) <= (2 * gap + math.sqrt(2 * self.tol) * r0) / r0:
-                alpha, length = a_d + delta, l_tan
-            else:
-                alpha, length = a_d, math.hypot(tip[0] - d[0], tip[1] - d[1])
+        th_r = hub_angle + self.root[k]
+        if self.mode[k] == WRAPPED and r0 > 0:
+            c = self.sense[k]
+            th_d, l_tan = self._tangent(tip, c)
+            alpha = _near(c * (th_r - th_d), self.prev_alpha[k])
             if alpha > 0:
-                self.prev_wound[k] = True
-                return length, -sense * (0.5 * math.pi + alpha)
+                self.prev_alpha[k] = alpha
+                return l_tan, -c * (0.5 * math.pi + alpha)
+            self.mode[k] = PIVOT
+        ex, ey = math.cos(th_r), math.sin(th_r)
         qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
         phi = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
         prev = self.prev_phi[k]
-        if prev == prev and not self.prev_wound[k]:  # continuous in time: the 2 pi branch
-            #     nearest the previous row (an arm just off the hub takes the principal value)
-            phi += 2 * math.pi * round((prev - phi) / (2 * math.pi))
-        self.prev_wound[k] = False
+        if prev == prev:  # continuous in time: the 2 pi branch nearest the previous row
+            phi = _near(phi, prev)
+        if abs(phi) > 0.5 * math.pi and r0 > 0:  # the line R -> tip would cross the hub
+            c = -math.copysign(1.0, phi)
+            th_d, l_tan = self._tangent(tip, c)
+            alpha = max(_near(c * (th_r - th_d), 0.0), 0.0)
+            self.mode[k], self.sense[k], self.prev_alpha[k] = WRAPPED, c, alpha
+            return l_tan, -c * (0.5 * math.pi + alpha)
         return math.hypot(qx, qy), phi
+
+    def _watch(self, arm_table, sd, times):
+        """Log when a rate payout's front waits: the law allows more than two level spacings
+        beyond what the arm has paid out (the free part does not pull the coil off)."""
+        paid = self.tip_coord - sd
+        lag = arm_table[..., 4] - paid
+        gap = np.abs(arm_table[..., 1] - arm_table[..., 0])
+        for k in range(self.n):
+            for t in range(lag.shape[0]):
+                wait = bool(lag[t, k] > 2.0 * gap[t, k] and np.isfinite(paid[t, k]))
+                if wait and not self.waiting[k]:
+                    log.info("t = %.4g s, arm %d: the payout waits for its arm (the law "
+                             "allows %.4g m, %.4g m are paid out)", times[t], k,
+                             arm_table[t, k, 4], paid[t, k])
+                self.waiting[k] = wait

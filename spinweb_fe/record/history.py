@@ -35,7 +35,13 @@ COLUMNS = {
                                "positive; |phi| > pi/2 while coiled (phi = -(pi/2 + wound "
                                "angle) for a trailing wrap)"),
     "tip_omega": Column("rad/s", "angular velocity of the tip position about the hub axis"),
+    "payout_front": Column("m", "held coil: arm coordinate of each arm's peel front (its "
+                                "base once everything is released)"),
+    "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
+    "payout_allowed": Column("m", "rate payout: the paid-out length the law allows"),
 }
+#: columns that only some scenes have (a held coil, a rate payout)
+OPTIONAL = ("payout_front", "payout_speed", "payout_allowed")
 #: name -> SI unit of every history dataset
 HISTORY_UNITS = {name: c.units for name, c in COLUMNS.items()}
 

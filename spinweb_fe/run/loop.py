@@ -57,7 +57,7 @@ class RunResult:
 
 def start(model: Model, control: Control, state: State, dt: float):
     """Shift v_0, omega_0 back half a step (second-order start of central differences)."""
-    step.start_half_step(model.elements, model.nodes, model.hub, control.kernel, state, dt)
+    step.start_half_step(model.kernel, control.kernel, state, dt)
 
 
 def current_tension(model: Model, pos, vel):
@@ -85,14 +85,17 @@ def choose_threads(model: Model, requested=None) -> int:
 class _Chunks:
     """The step loop's buffers and the turning of its records into history rows."""
 
-    def __init__(self, model, control, tracker, rec_every, threads):
-        self.args = (model.elements, model.nodes, model.hub, control.kernel)
+    def __init__(self, model, control, tracker, rec_every, threads, dt):
+        self.args = (model.kernel, control.kernel)
         self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
         rows = ROWS_PER_CHUNK + 1
         n_probes = len(tracker.probes)
         self.rec = step.Recording(rec_every, tracker.probes,
                                   np.zeros((rows, len(step.REC_COLUMNS))),
-                                  np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)))
+                                  np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)),
+                                  np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)))
+        self.coiled = len(model.coil.level_nodes) > 0
+        self.row_dt = rec_every * dt
         self.tracker = tracker
         self.history = []
 
@@ -101,9 +104,9 @@ class _Chunks:
 
     def rows(self, nrec) -> dict:
         rows = table_rows(self.rec.table, nrec)
-        L, phi, wtip = self.tracker.update(self.rec.probe_pos[:nrec], self.rec.probe_vel[:nrec],
-                                           rows["hub_angle"])
-        rows.update(arm_length=L, arm_angle=phi, tip_omega=wtip)
+        arms = self.rec.arm_table[:nrec] if self.coiled else None
+        rows.update(self.tracker.columns(rows, self.rec.probe_pos[:nrec],
+                                         self.rec.probe_vel[:nrec], arms, self.row_dt))
         self.history.append(rows)
         return rows
 
@@ -159,7 +162,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if resume and owner.name in resume:
             owner.restore(resume[owner.name])
     threads = choose_threads(model, threads)
-    chunks = _Chunks(model, control, tracker, rec_every, threads)
+    chunks = _Chunks(model, control, tracker, rec_every, threads, dt)
     t_compile = time.perf_counter()
     if resume is None:
         start(model, control, state, dt)

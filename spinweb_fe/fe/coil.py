@@ -1,0 +1,424 @@
+"""The stowed coil: nodes held on the hub until the peel front of their arm releases them,
+at a free or a prescribed pace, and bundles that move an arm's gathered levels as one.
+
+A coiled scene's coil (the nodes that ``meshgen.fold.coil`` wound on the rim, and the web's
+lead-in from the frame corner in to the rim) is cut into *levels*: per arm, the coil nodes of
+one arm coordinate, ordered from the outer end of the coil (the tip) towards the root. Per arm
+a *front* counts the levels released so far; the levels behind it are *held*: they move with
+the hub like tied nodes, their mass in the hub's inertia. At the start only the tip level is
+free. After a step the front level is released when its free element (to a released level)
+is taut and points outward from the hub surface at the front node (the free part pulls it
+off), and, under a rate payout, when the paid-out length would not exceed the law's. A
+released node keeps the hub's velocity at its position, so momentum and energy are
+continuous at each release.
+
+While an arm is *bundled*, each of its released levels moves as one point: the level's first
+node (its spine node) carries the level's summed mass and force, the others copy it. The
+bundles open (each node keeps the bundle's velocity) when the arm has paid out a given
+fraction of its length, or at a given time.
+
+Registries of the choices: :data:`COILS`, :data:`PAYOUTS`, :data:`BUNDLES`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class Choice(NamedTuple):
+    """A named choice of the stowage: its kernel code and what it does."""
+
+    code: int
+    doc: str
+
+
+COILS = {"held": Choice(1, "every coil node moves with the hub until its arm's peel front "
+                           "releases it"),
+         "loose": Choice(0, "the coil lies on the hub with nothing holding it (contact only)")}
+PAYOUTS = {"free": Choice(0, "the front advances when the free part pulls it off the hub"),
+           "rate": Choice(1, "as free, but never ahead of a prescribed paid-out length "
+                             "(payout_rate or payout_length)")}
+BUNDLES = {"none": Choice(0, "every node moves on its own"),
+           "until_length": Choice(1, "levels move as one until the arm has paid out "
+                                     "bundle_release times its length"),
+           "until_time": Choice(2, "levels move as one until t = bundle_release")}
+#: the last time of a payout_rate law's table [s]: L(t) = rate t up to here
+RATE_HORIZON = 1e9
+
+
+class Coil(NamedTuple):
+    """The levels of the coil and the laws that release them (fixed during a run).
+
+    Attributes
+    ----------
+    arm_ptr : (n_arms + 1,) int64
+        Levels of arm k: arm_ptr[k] .. arm_ptr[k+1]-1, outer end first.
+    level_ptr : (L + 1,) int64
+        Nodes of level l: level_nodes[level_ptr[l] .. level_ptr[l+1]-1], its spine node first.
+    level_nodes : (K,) int64
+    level_ref : (K, 3) float64 [m]
+        Hub-frame position of each level node (held nodes sit there).
+    level_coord : (L,) float64 [m]
+        Arm coordinate of each level.
+    level_mass : (L,) float64 [kg]
+        Mass of each level (a bundle's mass).
+    level_rim : (L,) bool
+        The level lies on the hub rim (the lead-in does not).
+    test_ptr : (L + 1,) int64
+        Free elements of level l: test_elem/test_from/test_to[test_ptr[l] .. test_ptr[l+1]-1],
+        each joining a node of level l (from) to a node of an outer level (to), the one
+        joining the spine nodes of two levels first.
+    test_elem, test_from, test_to : (T,) int64
+    test_to_coord : (T,) float64 [m]
+        Arm coordinate of the ``to`` node.
+    arm_end : (n_arms,) float64 [m]
+        Arm coordinate of the tip: free length = arm_end - front coordinate.
+    arm_base : (n_arms,) float64 [m]
+        Arm coordinate where the arm is attached once all its levels are released.
+    base_rim : (n_arms,) bool
+        The arm's base lies on the hub rim (tethers) or not (the web's frame corner).
+    wrap : int
+        +1 trailing coil (clockwise with growing arm coordinate), -1 leading.
+    radius : float [m]
+        Hub radius.
+    payout_t, payout_len : (P,) float64 [s], [m]
+        Paid-out length allowed by a rate payout, linear between points (empty: free payout).
+    bundle_code : int
+        0 none, 1 until_length, 2 until_time.
+    bundle_value : float
+        Fraction of the arm length, or the time [s].
+    """
+
+    arm_ptr: np.ndarray
+    level_ptr: np.ndarray
+    level_nodes: np.ndarray
+    level_ref: np.ndarray
+    level_coord: np.ndarray
+    level_mass: np.ndarray
+    level_rim: np.ndarray
+    test_ptr: np.ndarray
+    test_elem: np.ndarray
+    test_from: np.ndarray
+    test_to: np.ndarray
+    test_to_coord: np.ndarray
+    arm_end: np.ndarray
+    arm_base: np.ndarray
+    base_rim: np.ndarray
+    wrap: int
+    radius: float
+    payout_t: np.ndarray
+    payout_len: np.ndarray
+    bundle_code: int
+    bundle_value: float
+
+
+class CoilState(NamedTuple):
+    """Per arm: ``front`` (n_arms,) int64, the levels released; ``bundled`` (n_arms,) bool."""
+
+    front: np.ndarray
+    bundled: np.ndarray
+
+
+def no_coil(n_arms: int = 0) -> Coil:
+    """A scene without a coil (every kernel of this module then does nothing)."""
+    i0, f0 = np.zeros(1, np.int64), np.zeros(0)
+    return Coil(np.zeros(n_arms + 1, np.int64), i0, np.zeros(0, np.int64), np.zeros((0, 3)), f0,
+                f0, np.zeros(0, bool), i0, np.zeros(0, np.int64), np.zeros(0, np.int64),
+                np.zeros(0, np.int64), f0, np.zeros(n_arms), np.zeros(n_arms),
+                np.zeros(n_arms, bool), 0, 0.0, f0, f0, 0, 0.0)
+
+
+def _levels(mesh, coil_nodes):
+    """Per arm, the coil's levels (outer first): [(arm, coord, nodes with the spine first)].
+    Linear in the coil size apart from one sort."""
+    arm, coord = mesh.node_arm[coil_nodes], np.round(mesh.node_arm_coord[coil_nodes], 9)
+    spine = np.isin(coil_nodes, np.asarray(mesh.node_sets.get("boundary", []), np.int64))
+    order = np.lexsort((coil_nodes, ~spine, -coord, arm))  # arm, outer first, spine first
+    a, c, nodes = arm[order], coord[order], coil_nodes[order]
+    cut = np.flatnonzero((np.diff(a) != 0) | (np.diff(c) != 0)) + 1
+    return [(int(a[g[0]]), float(c[g[0]]), nodes[g])
+            for g in np.split(np.arange(len(nodes)), cut)]
+
+
+def _free_elements(elem_nodes, level_of, level_arm, level_coord, level_first):
+    """Per level, its free elements (from a node of the level to a node of an outer level of
+    the same arm), the one joining two spine nodes first: (ptr, elem, from, to)."""
+    e = np.arange(len(elem_nodes))
+    cols = []
+    for a, b in ((elem_nodes[:, 0], elem_nodes[:, 1]), (elem_nodes[:, 1], elem_nodes[:, 0])):
+        la, lb = level_of[a], level_of[b]
+        ok = (la >= 0) & (lb >= 0)
+        ok[ok] &= (level_arm[la[ok]] == level_arm[lb[ok]]) & (level_coord[lb[ok]]
+                                                                > level_coord[la[ok]])
+        cols.append((la[ok], e[ok], a[ok], b[ok]))
+    la, el, fr, to = (np.concatenate(c) for c in zip(*cols))
+    spine = (fr == level_first[la]) & (to == level_first[level_of[to]])
+    order = np.lexsort((to, el, ~spine, la))
+    la, el, fr, to = la[order], el[order], fr[order], to[order]
+    ptr = np.searchsorted(la, np.arange(len(level_coord) + 1))
+    return ptr.astype(np.int64), el, fr, to
+
+
+def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0)) -> Coil:
+    """The Coil of a coiled mesh (``mesh.node_sets['coil']``), its levels and free elements.
+
+    Parameters
+    ----------
+    mesh : meshgen.mesh.Mesh
+    elem_nodes : (m, 2) int64
+    node_mass : (n,) float64 [kg]
+    payout : None or ((P,) times [s], (P,) lengths [m])
+        The rate law's paid-out length table; None: free payout.
+    bundle : (code, value)
+        See :data:`BUNDLES`.
+    """
+    coil_nodes = np.asarray(mesh.node_sets.get("coil", []), np.int64)
+    if len(coil_nodes) == 0:
+        return no_coil(mesh.n_arms)
+    elem_nodes = np.asarray(elem_nodes, np.int64)
+    levels = _levels(mesh, coil_nodes)
+    level_arm = np.array([k for k, _, _ in levels], np.int64)
+    coord = np.array([c for _, c, _ in levels])
+    sizes = np.array([len(n) for _, _, n in levels])
+    level_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    nodes = np.concatenate([n for _, _, n in levels])
+    level_of = np.full(mesh.n_nodes, -1, np.int64)
+    level_of[nodes] = np.repeat(np.arange(len(levels)), sizes)
+    first = nodes[level_ptr[:-1]]
+    test_ptr, t_el, t_from, t_to = _free_elements(elem_nodes, level_of, level_arm, coord, first)
+    r = np.hypot(mesh.node_pos[:, 0], mesh.node_pos[:, 1])
+    on_rim = np.abs(r - mesh.hub_radius) <= 1e-9 * mesh.hub_radius
+    arm_ptr = np.searchsorted(level_arm, np.arange(mesh.n_arms + 1)).astype(np.int64)
+    ends, bases = np.zeros(mesh.n_arms), np.zeros(mesh.n_arms)
+    base_rim = np.zeros(mesh.n_arms, bool)
+    for k in range(mesh.n_arms):
+        mine = coord[arm_ptr[k]:arm_ptr[k + 1]]
+        ends[k] = mine.max()
+        below = np.flatnonzero((mesh.node_arm == k) & (mesh.node_arm_coord < mine.min() - 1e-9))
+        step = np.min(-np.diff(mine)) if len(mine) > 1 else 0.0
+        if len(below):
+            top = below[mesh.node_arm_coord[below] >= mesh.node_arm_coord[below].max() - 1e-9]
+            bases[k] = mesh.node_arm_coord[top[0]]
+            base_rim[k] = bool(np.all(on_rim[top]))
+        else:
+            bases[k] = mine.min() - step
+    t, L = (np.zeros(0), np.zeros(0)) if payout is None else payout
+    return Coil(
+        arm_ptr=arm_ptr, level_ptr=level_ptr, level_nodes=nodes,
+        level_ref=np.ascontiguousarray(mesh.node_pos[nodes], np.float64), level_coord=coord,
+        level_mass=np.add.reduceat(node_mass[nodes], level_ptr[:-1]),
+        level_rim=np.logical_and.reduceat(on_rim[nodes], level_ptr[:-1]),
+        test_ptr=test_ptr, test_elem=t_el, test_from=t_from, test_to=t_to,
+        test_to_coord=coord[level_of[t_to]], arm_end=ends, arm_base=bases, base_rim=base_rim,
+        wrap=int(mesh.wrap), radius=float(mesh.hub_radius),
+        payout_t=np.asarray(t, np.float64), payout_len=np.asarray(L, np.float64),
+        bundle_code=int(bundle[0]), bundle_value=float(bundle[1]))
+
+
+def rate_table(rate: float):
+    """The paid-out length table of a constant payout rate [m/s]: L(t) = rate t."""
+    return np.array([0.0, RATE_HORIZON]), np.array([0.0, rate * RATE_HORIZON])
+
+
+def coil_start(coil: Coil, held: bool) -> CoilState:
+    """Fronts at the start: a held coil has only its tip level free; a loose one all."""
+    n_arms = len(coil.arm_ptr) - 1
+    counts = np.diff(coil.arm_ptr)
+    front = np.minimum(counts, 1) if held else counts.copy()
+    return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0))
+
+
+@njit(cache=True)
+def level_masses(coil, cs, nodes, mass, inv_mass, lo, hi, bundled):
+    """Active masses of the nodes of levels lo..hi-1 once released: their own, or (bundled)
+    the level's mass on its spine node and none on the others."""
+    for lev in range(lo, hi):
+        a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
+        for p in range(a, b):
+            i = coil.level_nodes[p]
+            if bundled:
+                first = p == a
+                mass[i] = coil.level_mass[lev] if first else 0.0
+                inv_mass[i] = 1.0 / coil.level_mass[lev] if first else 0.0
+            else:
+                mass[i] = nodes.mass[i]
+                inv_mass[i] = nodes.inv_mass[i]
+
+
+@njit(cache=True)
+def held_inertia(coil, cs, nodes):
+    """sum m (x^2 + y^2) [kg m^2] of the held nodes, from their hub-frame positions."""
+    j = 0.0
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        for lev in range(coil.arm_ptr[k] + cs.front[k], coil.arm_ptr[k + 1]):
+            for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
+                i = coil.level_nodes[p]
+                j += nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
+    return j
+
+
+@njit(cache=True)
+def place_held(coil, cs, pos, vel, theta, omega):
+    """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""
+    c = np.cos(theta)
+    s = np.sin(theta)
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
+        for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
+            i = coil.level_nodes[p]
+            x = c * coil.level_ref[p, 0] - s * coil.level_ref[p, 1]
+            y = s * coil.level_ref[p, 0] + c * coil.level_ref[p, 1]
+            pos[i, 0] = x
+            pos[i, 1] = y
+            pos[i, 2] = coil.level_ref[p, 2]
+            vel[i, 0] = -omega * y
+            vel[i, 1] = omega * x
+            vel[i, 2] = 0.0
+
+
+@njit(cache=True)
+def held_moment(coil, cs, pos, forces):
+    """z-moment of the element forces on the held nodes (over the force buffers (nt, n, 3))."""
+    tau = 0.0
+    for c in range(forces.shape[0]):
+        force = forces[c]
+        for k in range(coil.arm_ptr.shape[0] - 1):
+            a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
+            for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
+                i = coil.level_nodes[p]
+                tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
+    return tau
+
+
+@njit(cache=True)
+def gather_bundles(coil, cs, forces):
+    """The force on each released level of a bundled arm, summed on its spine node (buffer 0;
+    the other nodes' rows are cleared)."""
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        if not cs.bundled[k]:
+            continue
+        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
+            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
+            m = coil.level_nodes[a]
+            for p in range(a + 1, b):
+                i = coil.level_nodes[p]
+                for c in range(forces.shape[0]):
+                    for d in range(3):
+                        forces[0, m, d] += forces[c, i, d]
+                        forces[c, i, d] = 0.0
+
+
+@njit(cache=True)
+def scatter_bundles(coil, cs, pos, vel):
+    """The other nodes of each bundle take its spine node's position and velocity."""
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        if not cs.bundled[k]:
+            continue
+        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
+            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
+            m = coil.level_nodes[a]
+            for p in range(a + 1, b):
+                i = coil.level_nodes[p]
+                for d in range(3):
+                    pos[i, d] = pos[m, d]
+                    vel[i, d] = vel[m, d]
+
+
+@njit(cache=True)
+def payout_allowed(coil, t):
+    """Paid-out length [m] a rate payout allows at time t (inf: free payout)."""
+    tt, ll = coil.payout_t, coil.payout_len
+    if tt.shape[0] == 0:
+        return np.inf
+    if t <= tt[0]:
+        return ll[0]
+    for q in range(1, tt.shape[0]):
+        if t <= tt[q]:
+            return ll[q - 1] + (ll[q] - ll[q - 1]) * (t - tt[q - 1]) / (tt[q] - tt[q - 1])
+    return ll[-1]
+
+
+@njit(cache=True)
+def free_length(coil, cs, k):
+    """Paid-out length [m] of arm k: from its front level (or its base) to the tip."""
+    lev = coil.arm_ptr[k] + cs.front[k]
+    if lev < coil.arm_ptr[k + 1]:
+        return coil.arm_end[k] - coil.level_coord[lev]
+    return coil.arm_end[k] - coil.arm_base[k]
+
+
+@njit(cache=True)
+def pulls(coil, elems, pos, lev):
+    """True if a free element of level ``lev`` is taut and points outward from the hub at
+    its node of this level: the free part pulls the level off the hub."""
+    for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
+        e, a, b = coil.test_elem[q], coil.test_from[q], coil.test_to[q]
+        dx = pos[b, 0] - pos[a, 0]
+        dy = pos[b, 1] - pos[a, 1]
+        dz = pos[b, 2] - pos[a, 2]
+        taut = (dx * dx + dy * dy + dz * dz) * elems.inv_rest[e] ** 2 > 1.0
+        if taut and dx * pos[a, 0] + dy * pos[a, 1] > 0.0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t):
+    """After a step: release the front level of every arm whose free part pulls it off the
+    hub and whose paid-out length would then not exceed the payout law's at time t.
+    Returns the hub's effective inertia without the released nodes [kg m^2]."""
+    allowed = payout_allowed(coil, t)
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        lev = coil.arm_ptr[k] + cs.front[k]
+        end = coil.arm_ptr[k + 1]
+        if lev >= end:
+            continue
+        after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end
+                                   else coil.arm_base[k])
+        if after > allowed or not pulls(coil, elems, pos, lev):
+            continue
+        for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
+            i = coil.level_nodes[p]
+            inertia -= nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
+        level_masses(coil, cs, nodes, mass, inv_mass, lev, lev + 1, cs.bundled[k])
+        cs.front[k] += 1
+    return inertia
+
+
+@njit(cache=True)
+def open_bundles(coil, cs, nodes, mass, inv_mass, t):
+    """Open the bundles of the arms that reached the release (length fraction or time):
+    every node keeps the bundle's position and velocity and gets its own mass back."""
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        if not cs.bundled[k]:
+            continue
+        if coil.bundle_code == 2:
+            due = t >= coil.bundle_value
+        else:
+            span = coil.arm_end[k] - coil.arm_base[k]
+            due = free_length(coil, cs, k) >= coil.bundle_value * span - 1e-12 * span
+        if due:
+            level_masses(coil, cs, nodes, mass, inv_mass, coil.arm_ptr[k],
+                         coil.arm_ptr[k] + cs.front[k], False)
+            cs.bundled[k] = False
+
+
+@njit(cache=True)
+def front_row(coil, cs, k, t):
+    """Arm k's held coil at time t: (front coordinate, next outer level's coordinate, 1 if
+    the pinned node lies on the rim, 1 if the payout law holds the front back [m, m, -, -]).
+    Once every level is released the front is the arm's base."""
+    lo, end = coil.arm_ptr[k], coil.arm_ptr[k + 1]
+    lev = lo + cs.front[k]
+    if lev >= end:
+        s_n = coil.level_coord[end - 1] if end > lo else coil.arm_base[k]
+        return coil.arm_base[k], s_n, 1.0 if coil.base_rim[k] else 0.0, 0.0
+    q = coil.test_ptr[lev]
+    s_f = coil.level_coord[lev]
+    s_n = coil.test_to_coord[q] if q < coil.test_ptr[lev + 1] else s_f
+    after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end else coil.arm_base[k])
+    bound = 1.0 if after > payout_allowed(coil, t) else 0.0
+    return s_f, s_n, 1.0 if coil.level_rim[lev] else 0.0, bound
