@@ -100,6 +100,10 @@ class ArmParams:
         I = lin * L2 * L2 / 6.0 + uni * L2 * L / 3.0 + self.m_tip * L2
         return m_f, S, I
 
+    def root_density(self, L: float) -> float:
+        """Line density [kg/m] at the base of a free part of length L: d m_f / dL."""
+        return 2.0 * self.m_lin * L / (self.H * self.H) + self.m_uni / self.H
+
 
 def geometry(p: ArmParams, phi: float, coiled: bool):
     """Free length and the effective angle of the free arm at its base.
@@ -168,7 +172,14 @@ def accelerations(model: str, p: ArmParams, phi: float, omega: float, psi: float
     -------
     omega_dot [rad/s^2], psi_dot [rad/s^2], torque [N m]
     """
-    a11, a12, b1, a21, a22, b2 = _rows(model, p, phi, omega, psi, coiled)
+    return solve_rows(_rows(model, p, phi, omega, psi, coiled), torque, omega_dot)
+
+
+def solve_rows(coeffs, torque=None, omega_dot=None) -> tuple[float, float, float]:
+    """(omega', Psi', M) from the coefficients (a11, a12, b1, a21, a22, b2) of
+    a11 omega' + a12 Psi' = b1 + M, a21 omega' + a22 Psi' = b2, given the torque M or the
+    hub acceleration omega'."""
+    a11, a12, b1, a21, a22, b2 = coeffs
     if omega_dot is None:
         det = a11 * a22 - a12 * a21
         omega_dot = ((b1 + torque) * a22 - a12 * b2) / det

@@ -20,9 +20,12 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from meshgen.registry import TOPOLOGIES, cable_length_per_area
+from spinweb_fe.analytic import payout as pay_mod
 from spinweb_fe.analytic.models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
-                                        root_tension, tip_rate)
+                                        root_tension, solve_rows, tip_rate)
+from spinweb_fe.analytic.payout import Payout
 from spinweb_fe.case.scene import control_from_case
+from spinweb_fe.fe.coil import rate_table
 from spinweb_fe.fe.control import Control
 
 log = logging.getLogger(__name__)
@@ -130,8 +133,19 @@ def _captured_inertia(model, p, L):
     return base + p.n * I
 
 
-def _accel(model, p, control, regime, t, phi, omega, psi):
+def _law(pay, p, t):
+    """(L, L') of the payout law at t, L at most H."""
+    L, Ld = pay.at(t)
+    return (p.H, 0.0) if L >= p.H else (L, Ld)
+
+
+def _accel(model, p, control, regime, t, phi, omega, psi, pay=None, w=1.0):
     """(omega', Psi', M) in any regime; captured arms turn with the hub (Psi = omega)."""
+    if regime == "paying":
+        coeffs = pay_mod.rows(p, phi, omega, psi, *_law(pay, p, t), w)
+        if control.law.prescribes_rate:
+            return solve_rows(coeffs, omega_dot=_rate(control, t)[1])
+        return solve_rows(coeffs, torque=_torque(control, t, omega))
     coiled = regime != "pivoting"
     if regime == "captured":
         J = _captured_inertia(model, p, p.H - p.r0 * (abs(phi) - HALF_PI))
@@ -152,17 +166,24 @@ def _release(model, p, control, t, y):
     return math.copysign(1.0, phi) * (pd - wd)
 
 
-def _rhs_factory(model, p, control, regime):
+def _rhs_factory(model, p, control, regime, pay, w):
     def rhs(t, y):
-        omega_dot, psi_dot, M = _accel(model, p, control, regime, t, y[1], y[2], y[3])
+        omega_dot, psi_dot, M = _accel(model, p, control, regime, t, y[1], y[2], y[3], pay, w)
         # y = theta, phi, omega, Psi, torque work W, torque impulse P
         return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[2], M]
     return rhs
 
 
-def _events(model, p, control, regime, phi_now, L_min):
+def _events(model, p, control, regime, phi_now, L_min, pay, w, t_now):
+    """Terminal events of a regime (their order is their meaning in :func:`integrate`)."""
     sigma = 1.0 if phi_now > 0 else -1.0
     if regime == "captured":
+        if pay is not None and _law(pay, p, t_now)[0] < 2.0 * L_min:
+            def allowed(t, y):     # the law lets the start-up length out
+                return _law(pay, p, t)[0] - 2.0 * L_min
+            allowed.terminal, allowed.direction = True, 1.0
+            return [allowed]
+
         def release(t, y):
             return _release(model, p, control, t, y)
         release.terminal, release.direction = True, -1.0
@@ -175,7 +196,28 @@ def _events(model, p, control, regime, phi_now, L_min):
             return p.H - p.r0 * (sigma * y[1] - HALF_PI) - L_min
         leave.terminal = wound.terminal = True
         leave.direction = wound.direction = -1.0
-        return [leave, wound]
+        if pay is None:
+            return [leave, wound]
+
+        def binds(t, y):           # the free length reaches the law's: the law holds it
+            return p.H - p.r0 * (sigma * y[1] - HALF_PI) - _law(pay, p, t)[0]
+        binds.terminal, binds.direction = True, 1.0
+        return [leave, wound, binds]
+    if regime == "paying":
+        def beta(t, y):
+            return y[1] + w * (p.H - _law(pay, p, t)[0]) / p.r0
+
+        def slack(t, y):           # back to the tangent: the arm pulls less than the law
+            return w * beta(t, y) + HALF_PI
+
+        def over(t, y):            # swings over its held coil
+            return w * beta(t, y) - HALF_PI
+
+        def full(t, y):            # everything paid out: pivoting about the root
+            return _law(pay, p, t)[0] - p.H * (1.0 - 1e-12)
+        slack.terminal = over.terminal = full.terminal = True
+        slack.direction, over.direction, full.direction = -1.0, 1.0, 1.0
+        return [slack, over, full]
 
     def up(t, y):
         return y[1] - HALF_PI
@@ -190,7 +232,8 @@ def _events(model, p, control, regime, phi_now, L_min):
 def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_end: float,
              history_dt: float, coiled: bool = True, wrap: str = "trailing",
              omega_init: float = 8 * math.pi, spin: str = "all", L0: float | None = None,
-             rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853") -> AnalyticResult:
+             rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853",
+             payout: Payout | None = None) -> AnalyticResult:
     """Integrate the model from t = 0 to ``t_end`` and sample the history.
 
     Three regimes, switched exactly by solve_ivp events: ``pivoting`` (|phi| <= pi/2, L = H),
@@ -218,6 +261,10 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     rtol, atol : float
         solve_ivp tolerances; atol applies to angles [rad] and rates [rad/s], the torque
         work and impulse use atol scaled by the initial energy and momentum.
+    payout : Payout or None
+        A rate payout (consistent model only): the free length never exceeds the law's;
+        while the law holds it the arm is ``paying`` (:mod:`spinweb_fe.analytic.payout`),
+        and the history gains ``restraint_work``.
 
     Returns
     -------
@@ -225,6 +272,9 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     """
     if model not in MODELS:
         raise ValueError(f"unknown model '{model}' (valid: {', '.join(MODELS)})")
+    if payout is not None and model != "consistent":
+        raise ValueError("the rate payout is defined for the consistent model only")
+    w = 1.0 if wrap == "trailing" else -1.0
     phi0, omega0, psi0, regime = start_state(p, control, coiled, wrap, omega_init, spin, L0,
                                              model)
     L_start = p.H - p.r0 * max(0.0, abs(phi0) - HALF_PI)
@@ -240,18 +290,20 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
                        atol * max(E0, p.J0 * w_scale ** 2), atol * max(abs(K0), p.J0 * w_scale)])
     y = np.array([0.0, phi0, omega0, psi0, 0.0, 0.0])
     t, segments, switches, stopped, lost = 0.0, [], [], "", 0.0
-    stops = _breaks(control, t_end) + [t_end]
+    stops = sorted(set(_breaks(control, t_end) + (payout.breaks(t_end) if payout else [])
+                       + [t_end]))
     while t < t_end and not stopped:
         if len(segments) > MAX_SEGMENTS:
             stopped = f"more than {MAX_SEGMENTS} regime switches by t = {t:.6g} s (chattering)"
             break
-        if regime == "captured" and _release(model, p, control, t, y) < 0:
+        if regime == "captured" and _release(model, p, control, t, y) < 0 and (
+                payout is None or _law(payout, p, t)[0] >= 2.0 * L_min):
             regime = "coiled"
             switches.append((t, y[1], regime))
         t_stop = next(b for b in stops if b > t)
-        sol = solve_ivp(_rhs_factory(model, p, control, regime), (t, t_stop), y,
+        sol = solve_ivp(_rhs_factory(model, p, control, regime, payout, w), (t, t_stop), y,
                         method=method, rtol=rtol, atol=atol_v, dense_output=True,
-                        events=_events(model, p, control, regime, y[1], L_min))
+                        events=_events(model, p, control, regime, y[1], L_min, payout, w, t))
         if sol.status < 0:
             stopped = f"solve_ivp failed at t = {sol.t[-1]:.6g} s: {sol.message}"
         segments.append((t, sol.t[-1], sol.sol, regime, lost))
@@ -260,7 +312,16 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
             continue
         hit = [i for i, te in enumerate(sol.t_events) if len(te)][0]
         if regime == "captured":
-            regime = "coiled"
+            if payout is None or _law(payout, p, t)[0] >= 2.0 * L_min:
+                regime = "coiled"
+        elif regime == "coiled" and hit == 2:     # the law holds the arm back
+            regime = "paying"
+        elif regime == "paying":
+            if hit == 1:
+                stopped = (f"at t = {t:.6g} s the arm swings over its held coil: the "
+                           "analytical rate payout ends here")
+                break
+            regime = "coiled" if hit == 0 else "pivoting"
         elif regime == "coiled" and hit == 1:     # inelastic capture, K conserved
             E_before, K = invariants(p, y[1], y[2], y[3], True)
             m_f, S, I = p.moments(L_min)
@@ -273,7 +334,7 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
             y[1] = math.copysign(HALF_PI, y[1])
             regime = "pivoting" if regime == "coiled" else "coiled"
         switches.append((t, y[1], regime))
-    hist = _sample(model, p, control, segments, history_dt, t_end)
+    hist = _sample(model, p, control, segments, history_dt, t_end, payout, w)
     info = {"E0": E0, "K0": K0, "L0": L_start,
             "start_loss": E_init - E0 if E_init else 0.0, "contact_loss": lost}
     if stopped:
@@ -281,7 +342,7 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     return AnalyticResult(hist, p, model, switches, stopped, info)
 
 
-def _sample(model, p, control, segments, dt, t_end):
+def _sample(model, p, control, segments, dt, t_end, pay=None, w=1.0):
     n_out = int(math.floor(t_end / dt + 1e-9)) + 1
     times = np.arange(n_out) * dt
     times = times[times <= segments[-1][1] + 1e-12]
@@ -295,11 +356,18 @@ def _sample(model, p, control, segments, dt, t_end):
         while k < len(times) and (times[k] < tb or (last and times[k] <= tb + 1e-12)):
             tk = min(times[k], tb)
             theta, phi, omega, psi, work, imp = dense(tk)
-            wd, _, M = _accel(model, p, control, regime, tk, phi, omega, psi)
-            E, K = invariants(p, phi, omega, psi, coiled)
-            L = p.H - p.r0 * max(0.0, abs(phi) - HALF_PI) if coiled else p.H
-            vals = (theta, omega, M, E, work, K, root_tension(p, phi, omega, psi, wd, coiled),
-                    L, phi, tip_rate(p, phi, omega, psi, coiled), imp, lost)
+            wd, _, M = _accel(model, p, control, regime, tk, phi, omega, psi, pay, w)
+            if regime == "paying":
+                L, Ld = _law(pay, p, tk)
+                E, K = pay_mod.invariants(p, phi, omega, psi, L, Ld, w)
+                N = pay_mod.tension(p, phi, omega, psi, wd, L, Ld, w)
+                tip = pay_mod.tip_rate(p, phi, omega, psi, L, Ld, w)
+            else:
+                E, K = invariants(p, phi, omega, psi, coiled)
+                L = p.H - p.r0 * max(0.0, abs(phi) - HALF_PI) if coiled else p.H
+                N = root_tension(p, phi, omega, psi, wd, coiled)
+                tip = tip_rate(p, phi, omega, psi, coiled)
+            vals = (theta, omega, M, E, work, K, N, L, phi, tip, imp, lost)
             for name, v in zip(names, vals):
                 cols[name][k] = v
             k += 1
@@ -312,7 +380,9 @@ def _sample(model, p, control, segments, dt, t_end):
             "arm_length": np.repeat(cols["L"][:, None], n, axis=1),
             "arm_angle": np.repeat(cols["phi"][:, None], n, axis=1),
             "tip_omega": np.repeat(cols["tip"][:, None], n, axis=1),
-            "torque_impulse": (cols["impulse"], "N m s")}
+            "torque_impulse": (cols["impulse"], "N m s"),
+            **({} if pay is None else {"restraint_work": cols["kinetic_energy"] + cols["lost"]
+                                       - cols["kinetic_energy"][0] - cols["torque_work"]})}
 
 
 def drifts(result: AnalyticResult) -> tuple[np.ndarray, np.ndarray]:
@@ -333,6 +403,7 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
     """Map a case, integrate the chosen model to ``time.end`` and return the result."""
     p = params_from_case(case, tether_mass=tether_mass)
     control = control_from_case(case)
+    payout = payout_from_case(case)
     if control.law.prescribes_rate and case.initial.omega != _rate(control, 0.0)[0]:
         log.info("%s starts from its own rate at t = 0: initial.omega = %g is not used",
                  control.law.name, case.initial.omega)
@@ -340,7 +411,18 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
     return integrate(p, control, model=model, t_end=case.time.end,
                      history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
                      omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
-                     rtol=rtol, atol=atol)
+                     rtol=rtol, atol=atol, payout=payout)
+
+
+def payout_from_case(case) -> Payout | None:
+    """The case's rate payout law ([stowage] payout = 'rate'), None for a free payout."""
+    st = case.stowage
+    if st.payout != "rate":
+        return None
+    if st.payout_rate is not None:
+        return Payout(*rate_table(st.payout_rate))
+    times, lengths = zip(*st.payout_length)
+    return Payout(np.array(times), np.array(lengths))
 
 
 def write(path, case, result: AnalyticResult, rtol: float, atol: float):

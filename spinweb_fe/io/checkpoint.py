@@ -17,8 +17,8 @@ and the history row of step n itself are not (the continued run writes them). It
 
 The control laws keep no memory of their own, so nothing else is needed. The file is written
 to a temporary name and renamed (``os.replace``), so a run killed while writing leaves the
-previous checkpoint intact. Version 1 files (an 8-slot hub vector, ``/arms`` and the
-attribute ``energy_ref``) are read too.
+previous checkpoint intact. Version 1 files (before the held coil) are refused with a
+one-line reason.
 """
 
 from __future__ import annotations
@@ -140,25 +140,8 @@ def write_checkpoint(path, ck: Checkpoint) -> Path:
     return path
 
 
-def _state_v1(g) -> State:
-    """A version-1 state: pos, vel and the 8-slot vector (theta, omega, time, torque work,
-    damping, contact, step, torque)."""
-    hub = np.array(g["hub"][()], dtype=np.float64)
-    one = lambda k: np.array([hub[k]])  # noqa: E731
-    return from_arrays({"node_pos": np.array(g["pos"][()]), "node_vel": np.array(g["vel"][()]),
-                        "hub/angle": one(0), "hub/rate": one(1), "totals/torque_work": one(3),
-                        "totals/damping_dissipation": one(4),
-                        "totals/contact_dissipation": one(5),
-                        "step": np.array([int(hub[6])], np.int64), "time": one(2)})
-
-
 def _read(h5) -> tuple:
-    """(state, memory) of a version-2 or version-1 file."""
-    if int(h5.attrs["checkpoint_version"]) == 1:
-        memory = {"arms": {k: v[()] for k, v in h5["arms"].items()}}
-        if "energy_ref" in h5.attrs:
-            memory["energy"] = {"ref": np.array(h5.attrs["energy_ref"], dtype=np.float64)}
-        return _state_v1(h5["state"]), memory
+    """(state, memory) of a checkpoint file."""
     arrays = {}
     h5["state"].visititems(lambda name, obj: arrays.__setitem__(name, np.array(obj[()]))
                            if isinstance(obj, h5py.Dataset) else None)
@@ -167,7 +150,7 @@ def _read(h5) -> tuple:
 
 
 def read_checkpoint(path) -> Checkpoint:
-    """Read a checkpoint written by :func:`write_checkpoint` (or by version 1).
+    """Read a checkpoint written by :func:`write_checkpoint`.
 
     Raises
     ------
@@ -179,10 +162,11 @@ def read_checkpoint(path) -> Checkpoint:
         a = h5.attrs
         if a.get("format") != CHECKPOINT_FORMAT:
             raise InputError(path, "format", "not a spinweb checkpoint")
-        if int(a.get("checkpoint_version", -1)) not in (1, CHECKPOINT_VERSION):
+        if int(a.get("checkpoint_version", -1)) != CHECKPOINT_VERSION:
             raise InputError(path, "checkpoint_version",
                              f"version {a.get('checkpoint_version')} is not supported "
-                             f"(this spinweb reads 1 and {CHECKPOINT_VERSION})")
+                             f"(this spinweb reads {CHECKPOINT_VERSION}; version 1 predates "
+                             "the held coil: rerun the case)")
         try:
             state, memory = _read(h5)
             entries = list(zip((float(t) for t in h5["pvd/time"][()]),

@@ -2,34 +2,32 @@
 
 Each arm (tether) has a root point R on the hub rim (hub-frame angle theta_R, the mesh's
 ``arm_root_angle``) and a tip node. As in the analytical model the arm is a straight free
-part of length L, either pivoting about R (|phi| <= pi/2) or leaving the hub tangentially
-at a departure point D after a wound angle alpha measured from R along the hub
-(|phi| = pi/2 + alpha). At each history row, per arm:
+part of length L hanging from an anchor A on the rim, either pivoting about A or leaving the
+hub tangentially at a departure point D after winding on from A; phi is the arm's angle
+from the outward radial at R, counter-clockwise positive, with |phi| = pi/2 + alpha while
+wound over alpha. At each history row, per arm:
 
-- a **held coil** (spinweb_fe.fe.coil) whose pinned node (the peel front, or the arm's base
-  once everything is released) lies on the rim: the arm leaves the coil tangentially at the
-  tangent point D from the tip (wound over alpha from R, continued in time), L = |tip - D|,
-  phi = -w (pi/2 + alpha) with w the coil's wrap sign (+1 trailing: clockwise). The step
-  loop records the front F (arm coordinate s_F, wound over alpha_F) and whether a rate
-  payout holds it back; then, if D lies behind F (alpha < alpha_F), the arm pivots about
-  F: L = |tip - F|, phi = -w alpha_F + beta, beta the angle of (tip - F) from the outward
-  radial at F (equal to the tangent branch where the arm just touches the rim at F). The
-  tangent is not clipped to the front under a free payout: the discrete chain kinks over
-  about one element at the front, so the front lags the straight arm's departure by up to
-  one level while the tip, hub and tension follow the continuum (docs/validation.md);
-- otherwise the arm is free: **pivoting**, phi = the angle of (tip - R) from the outward
-  radial at R, counter-clockwise positive, continued in time (no jump at +-pi), L = |tip - R|;
-  or **wrapped** once that line would cross the hub (|phi| > pi/2): the arm has wound on
-  the hub in the direction it swung, c = -sign(phi), D is the tangent point from the tip on
-  that side, alpha its angle from R along the wrap (continued in time over several turns),
-  phi = -c (pi/2 + alpha), L = the tangent length; back to pivoting when alpha reaches 0.
+- the anchor is R, except while a rate payout holds a held coil's front F back (the step
+  loop records the front and whether the law binds): then the arm hangs from F, wound over
+  alpha_F = (s_F - arm_root_coord) / r0 from R;
+- **pivoting** about A: phi = -w alpha_A + beta, beta the angle of (tip - A) from the
+  outward radial at A, continued in time (no jump at +-pi); L = |tip - A|. w is the coil's
+  wrap sign (+1 trailing: clockwise), alpha_A = 0 for A = R;
+- **wrapped** once the line A -> tip would cross the hub (|beta| > pi/2): the arm winds on
+  the hub in the direction it swung, c = -sign(beta); D is the tangent point from the tip
+  on that side, wound over rel from A (continued in time over several turns),
+  phi = -w alpha_A - c (pi/2 + rel), L the tangent length; back to pivoting when rel = 0.
 
-Every branch meets the next continuously for a straight arm (D = R at alpha = 0, phi =
-+-pi/2 on both sides), so L and phi have no jumps from the measure itself. Held and
-coiled-at-start arms start wound over their whole coil. omega_tip = (p x v)_z / |p|^2, the
-rate of the tip's polar angle about the hub axis. The same rows give a held coil's front
-coordinate and the payout speed, the rate of its paid-out length H_coord - s_D (H_coord: the
-tip's arm coordinate), and log when a rate payout waits for its arm.
+A coiled arm starts wrapped over its whole coil. Under a free payout the held coil is
+measured from R by its tangent point, not clipped to the discrete front: the chain kinks
+over about one element at the front, so the front lags the straight arm's departure by up
+to one level while the tip, hub and tension follow the continuum (docs/validation.md).
+Every branch meets the next continuously for a straight arm (D = A at rel = 0, phi the same
+on both sides); the anchor moves (and the measure steps) only when a bound front is
+released. omega_tip = (p x v)_z / |p|^2, the rate of the tip's polar angle about the hub
+axis. The same rows give a held coil's front coordinate and the payout speed, the rate of
+its paid-out length H_coord - s_D (H_coord: the tip's arm coordinate, s_D the departure
+point's arm coordinate), and log when a rate payout waits for its arm.
 """
 
 from __future__ import annotations
@@ -72,9 +70,8 @@ class ArmTracker:
         Hub radius (0: no hub, nothing is ever wound).
 
     Its memory from row to row (:meth:`memory`, :meth:`restore`: a restarted run continues
-    it): per arm the branch (pivot / wrapped), the wrap direction, the last phi and alpha,
-    the last departure coordinate, whether a rate payout waits and whether the held coil's
-    departure has reached the root (the coil is gone: the arm is measured as free).
+    it): per arm the branch (pivot / wrapped), the wrap direction, the last phi and
+    departure angle, the last departure coordinate and whether a rate payout waits.
     """
 
     name = "arms"
@@ -95,17 +92,17 @@ class ArmTracker:
         coiled = mesh.wrap != 0 and self.r0 > 0
         self.mode = np.full(self.n, WRAPPED if coiled else PIVOT)
         self.sense = np.full(self.n, self.wrap)  # c: +1 wound clockwise from R
-        self.prev_alpha = np.full(self.n, (self.tip_coord - self.root_coord) / self.r0
-                                  if coiled else 0.0)
+        # angle of the departure point from R along the coil (w), continued in time
+        self.prev_ad = np.full(self.n, (self.tip_coord - self.root_coord) / self.r0
+                               if coiled else 0.0)
         self.prev_phi = np.full(self.n, np.nan)
         self.prev_sd = np.full(self.n, np.nan)  # departure coordinate of the previous row
         self.waiting = np.zeros(self.n, bool)  # a rate payout's front waits for its arm
-        self.paid_out = np.zeros(self.n, bool)  # the held coil's departure reached the root
 
     def memory(self) -> dict:
         """What the measure carries from row to row (copies)."""
         return {k: getattr(self, k).copy() for k in
-                ("mode", "sense", "prev_alpha", "prev_phi", "prev_sd", "waiting", "paid_out")}
+                ("mode", "sense", "prev_ad", "prev_phi", "prev_sd", "waiting")}
 
     def restore(self, memory: dict) -> None:
         """Continue from :meth:`memory` of an earlier run (same mesh)."""
@@ -113,11 +110,12 @@ class ArmTracker:
             if hasattr(self, k):
                 setattr(self, k, np.array(v, dtype=getattr(self, k).dtype))
 
-    def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0) -> dict:
+    def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0,
+                rate=False) -> dict:
         """History columns of T rows, each (T, n_arms): ``arm_length``, ``arm_angle``,
         ``tip_omega``, and with a held coil's ``arm_table`` (T, n_arms, 5) from the step loop
         also ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under
-        a rate payout, ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
+        a rate payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
         ``hub_angle``."""
         L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table)
         out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip}
@@ -128,7 +126,7 @@ class ArmTracker:
         if len(sd):
             self.prev_sd = sd[-1].copy()
         out.update(payout_front=arm_table[..., 0].copy(), payout_speed=speed)
-        if np.all(np.isfinite(arm_table[..., 4])):
+        if rate:
             out["payout_allowed"] = arm_table[..., 4].copy()
             self._watch(arm_table, sd, rows["time"])
         return out
@@ -142,18 +140,16 @@ class ArmTracker:
         L, phi, sd = np.empty((T, n)), np.empty((T, n)), np.full((T, n), np.nan)
         for k in range(n):
             for t in range(T):
-                tip = tip_p[t, k]
+                th_r = hub_angle[t] + self.root[k]
                 row = None if arm_table is None else arm_table[t, k]
-                held = row is not None and row[2] > 0.5 and not self.paid_out[k]
-                if held:
-                    L[t, k], phi[t, k], sd[t, k] = self._held(k, row, hub_angle[t], tip)
-                    self.paid_out[k] = sd[t, k] <= self.root_coord and row[3] < 0.5
-                if not held or self.paid_out[k]:  # the departure reached the root
-                    if row is not None and not held:
-                        sd[t, k] = row[0]
-                    L[t, k], phi[t, k] = self._free(k, hub_angle[t], tip)
-                    L[t, k], phi[t, k] = self._free(k, hub_angle[t], tip)
+                # a rate payout holding the front back on the rim: the arm hangs from it
+                bound = row is not None and row[2] > 0.5 and row[3] > 0.5
+                alpha_a = (row[0] - self.root_coord) / self.r0 if bound else 0.0
+                L[t, k], phi[t, k], a_d = self._about(k, alpha_a, th_r, tip_p[t, k])
                 self.prev_phi[k] = phi[t, k]
+                if row is not None:
+                    sd[t, k] = (self.root_coord + self.r0 * a_d if row[2] > 0.5 and a_d > 0
+                                else row[0])
         px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)
         omega_tip = (px * tip_v[..., 1] - py * tip_v[..., 0]) / r2
@@ -166,49 +162,36 @@ class ArmTracker:
         l_tan = math.sqrt(max(rho * rho - self.r0 * self.r0, 0.0))
         return math.atan2(tip[1], tip[0]) + c * math.atan2(l_tan, self.r0), l_tan
 
-    def _held(self, k, row, hub_angle, tip):
-        """(L, phi, departure coordinate) of a held coil: tangentially from the tangent
-        point, or pivoting about the front F when a rate payout holds F back and the
-        tangent point lies behind it (``row``: the arm's record of the step loop)."""
+    def _about(self, k, alpha_a, th_r, tip):
+        """(L, phi, angle of the departure point from R along the coil) of an arm anchored
+        at A, wound over alpha_a from R (A = R: 0): pivoting about A, or wrapped on the hub
+        from A in the direction it swung."""
         w, r0 = self.wrap, self.r0
-        th_r = hub_angle + self.root[k]
-        th_d, l_tan = self._tangent(tip, w)
-        alpha = _near(w * (th_r - th_d), self.prev_alpha[k])
-        self.mode[k], self.sense[k], self.prev_alpha[k] = WRAPPED, w, alpha
-        alpha_f = (row[0] - self.root_coord) / r0
-        if row[3] < 0.5 or alpha >= alpha_f:
-            return l_tan, -w * (0.5 * math.pi + alpha), self.root_coord + r0 * alpha
-        th = th_r - w * alpha_f  # the pinned front F
-        ex, ey = math.cos(th), math.sin(th)
-        qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
-        beta = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
-        return math.hypot(qx, qy), -w * alpha_f + beta, row[0]
-
-    def _free(self, k, hub_angle, tip):
-        """(L, phi) of a free arm: pivoting about R, or wrapped on the hub."""
-        r0 = self.r0
-        th_r = hub_angle + self.root[k]
         if self.mode[k] == WRAPPED and r0 > 0:
             c = self.sense[k]
             th_d, l_tan = self._tangent(tip, c)
-            alpha = _near(c * (th_r - th_d), self.prev_alpha[k])
-            if alpha > 0:
-                self.prev_alpha[k] = alpha
-                return l_tan, -c * (0.5 * math.pi + alpha)
+            a_d = _near(w * (th_r - th_d), self.prev_ad[k])
+            rel = w * c * (a_d - alpha_a)
+            if rel > 0:
+                self.prev_ad[k] = a_d
+                return l_tan, -w * alpha_a - c * (0.5 * math.pi + rel), a_d
             self.mode[k] = PIVOT
-        ex, ey = math.cos(th_r), math.sin(th_r)
+        th_a = th_r - w * alpha_a
+        ex, ey = math.cos(th_a), math.sin(th_a)
         qx, qy = tip[0] - r0 * ex, tip[1] - r0 * ey
-        phi = math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
+        phi = -w * alpha_a + math.atan2(ex * qy - ey * qx, ex * qx + ey * qy)
         prev = self.prev_phi[k]
         if prev == prev:  # continuous in time: the 2 pi branch nearest the previous row
             phi = _near(phi, prev)
-        if abs(phi) > 0.5 * math.pi and r0 > 0:  # the line R -> tip would cross the hub
-            c = -math.copysign(1.0, phi)
+        beta = phi + w * alpha_a
+        if abs(beta) > 0.5 * math.pi and r0 > 0:  # the line A -> tip would cross the hub
+            c = -math.copysign(1.0, beta)
             th_d, l_tan = self._tangent(tip, c)
-            alpha = max(_near(c * (th_r - th_d), 0.0), 0.0)
-            self.mode[k], self.sense[k], self.prev_alpha[k] = WRAPPED, c, alpha
-            return l_tan, -c * (0.5 * math.pi + alpha)
-        return math.hypot(qx, qy), phi
+            rel = max(_near(c * (th_a - th_d), 0.0), 0.0)
+            a_d = alpha_a + w * c * rel
+            self.mode[k], self.sense[k], self.prev_ad[k] = WRAPPED, c, a_d
+            return l_tan, -w * alpha_a - c * (0.5 * math.pi + rel), a_d
+        return math.hypot(qx, qy), phi, alpha_a
 
     def _watch(self, arm_table, sd, times):
         """Log when a rate payout's front waits: the law allows more than two level spacings

@@ -39,9 +39,11 @@ COLUMNS = {
                                 "base once everything is released)"),
     "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
     "payout_allowed": Column("m", "rate payout: the paid-out length the law allows"),
+    "restraint_work": Column("J", "analytical rate payout: work of the restraint that holds the "
+                                  "arm back, E - E0 - torque work"),
 }
-#: columns that only some scenes have (a held coil, a rate payout)
-OPTIONAL = ("payout_front", "payout_speed", "payout_allowed")
+#: columns that only some scenes or models have (a held coil, a rate payout)
+OPTIONAL = ("payout_front", "payout_speed", "payout_allowed", "restraint_work")
 #: name -> SI unit of every history dataset
 HISTORY_UNITS = {name: c.units for name, c in COLUMNS.items()}
 

@@ -95,6 +95,7 @@ class _Chunks:
                                   np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)),
                                   np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)))
         self.coiled = len(model.coil.level_nodes) > 0
+        self.rate = len(model.coil.payout_t) > 0
         self.row_dt = rec_every * dt
         self.tracker = tracker
         self.history = []
@@ -106,7 +107,8 @@ class _Chunks:
         rows = table_rows(self.rec.table, nrec)
         arms = self.rec.arm_table[:nrec] if self.coiled else None
         rows.update(self.tracker.columns(rows, self.rec.probe_pos[:nrec],
-                                         self.rec.probe_vel[:nrec], arms, self.row_dt))
+                                         self.rec.probe_vel[:nrec], arms, self.row_dt,
+                                         self.rate))
         self.history.append(rows)
         return rows
 

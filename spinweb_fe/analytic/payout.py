@@ -1,0 +1,105 @@
+"""The analytical model's rate payout: the free length L(t) prescribed by a payout law.
+
+While the law holds the arm back ("paying"), each arm hangs from its departure point D,
+which the payout moves back along the coil: D is wound over alpha(t) = (H - L(t)) / r0 from
+the root R, at inertial angle theta_D = theta - w alpha (w = +1 for a trailing coil). The
+arm is straight from D at the absolute angle chi; phi = chi - theta as in every regime, and
+beta = phi + w alpha is its angle from the radial at D (beta = -w pi/2: tangent, the free
+coiled regime). The free part is the outer L metres of the arm (the profile measured from
+the tip), its material flows out of the coil at D at the rate L'. With u = theta_D' =
+omega + w L'/r0 and the free part's moments m_f, S, I about D (:meth:`ArmParams.moments`),
+rho0 = dm_f/dL the line density at D:
+
+- total angular momentum about the axis (the coil turns with the hub, consistent model):
+  K = J0 omega + n [r0 m_f L' (w + sin beta) + r0 S cos beta (Psi + u) + I Psi], K' = M;
+- moment of momentum of the free part about the moving point D: the only force on it acts
+  at D and the material enters at D, so H_D' + v_D x p = 0 with H_D = r0 S u cos beta +
+  I Psi, v_D = r0 u e_theta(theta_D), p the free part's momentum:
+  r0 S cos beta omega' + I Psi' = -(w S L'' cos beta + r0 S u^2 sin beta + 2 S L' Psi).
+
+Both are linear in (omega', Psi'), like the other regimes (:mod:`models`). At beta = -w pi/2
+they reduce to the coiled regime's K and E; at L = H (alpha = 0) to the pivoting regime's.
+The law does work: the energy balance E - E0 = W_torque + W_restraint defines the
+restraint's work, which is zero outside this regime. The laws here are piecewise linear in
+t (L'' = 0 between the table's points, where the integration restarts).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from spinweb_fe.analytic.models import ArmParams
+
+
+class Payout(NamedTuple):
+    """A payout law: paid-out (free) length ``length`` [m] at times ``times`` [s], linear
+    between the points and constant outside them."""
+
+    times: np.ndarray
+    length: np.ndarray
+
+    def at(self, t: float) -> tuple[float, float]:
+        """(L [m], L' [m/s]) at time t; L' is the slope of the segment starting at t."""
+        ts, ls = self.times, self.length
+        if t < ts[0] or t >= ts[-1] or len(ts) == 1:
+            return float(np.interp(t, ts, ls)), 0.0
+        q = int(np.searchsorted(ts, t, side="right")) - 1
+        slope = (ls[q + 1] - ls[q]) / (ts[q + 1] - ts[q])
+        return float(ls[q] + slope * (t - ts[q])), float(slope)
+
+    def breaks(self, t_end: float) -> list:
+        """The table's times inside (0, t_end): the law's slope changes there."""
+        return [float(t) for t in self.times if 0.0 < t < t_end]
+
+
+def _kin(p: ArmParams, phi, omega, L, Ld, w):
+    alpha = (p.H - L) / p.r0
+    beta = phi + w * alpha
+    u = omega + w * Ld / p.r0
+    m_f, S, I = p.moments(L)
+    return beta, u, m_f, S, I, p.root_density(L)
+
+
+def rows(p: ArmParams, phi, omega, psi, L, Ld, w):
+    """Coefficients (a11, a12, b1, a21, a22, b2) of a11 omega' + a12 Psi' = b1 + M,
+    a21 omega' + a22 Psi' = b2 in the paying regime (L'' = 0)."""
+    beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
+    n, r0 = p.n, p.r0
+    cb, sb = math.cos(beta), math.sin(beta)
+    r1 = n * (r0 * rho0 * Ld * Ld * (w + sb) + 2.0 * r0 * m_f * Ld * psi * cb
+              - r0 * S * sb * (psi * psi - u * u) + 2.0 * S * Ld * psi)
+    return (p.J0 + n * r0 * S * cb, n * (r0 * S * cb + I), -r1,
+            r0 * S * cb, I, -(r0 * S * u * u * sb + 2.0 * S * Ld * psi))
+
+
+def invariants(p: ArmParams, phi, omega, psi, L, Ld, w):
+    """(E [J], K [N m s]) of hub, coil and free arms in the paying regime."""
+    beta, u, m_f, S, I, _ = _kin(p, phi, omega, L, Ld, w)
+    n, r0 = p.n, p.r0
+    cb, sb = math.cos(beta), math.sin(beta)
+    E = (0.5 * (p.J_hub + n * (p.m_arm - m_f) * r0 * r0) * omega * omega
+         + n * (0.5 * m_f * (r0 * r0 * u * u + Ld * Ld + 2.0 * r0 * u * Ld * sb)
+                + 0.5 * I * psi * psi + r0 * u * psi * S * cb))
+    K = p.J0 * omega + n * (r0 * m_f * Ld * (w + sb) + r0 * S * cb * (psi + u) + I * psi)
+    return E, K
+
+
+def tension(p: ArmParams, phi, omega, psi, omega_dot, L, Ld, w) -> float:
+    """Arm tension N [N] at D: minus the along-arm part of the force on the free part,
+    N = m_f r0 (u^2 cos beta - u' sin beta) + S Psi^2 - rho0 L'^2 (1 + w sin beta)."""
+    beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
+    cb, sb = math.cos(beta), math.sin(beta)
+    return m_f * p.r0 * (u * u * cb - omega_dot * sb) + S * psi * psi - rho0 * Ld * Ld * (
+        1.0 + w * sb)
+
+
+def tip_rate(p: ArmParams, phi, omega, psi, L, Ld, w) -> float:
+    """Angular rate of the tip position vector about the hub axis [rad/s]."""
+    beta, u, _, _, _, _ = _kin(p, phi, omega, L, Ld, w)
+    r0 = p.r0
+    cb, sb = math.cos(beta), math.sin(beta)
+    h = r0 * r0 * u + r0 * Ld * sb + r0 * L * (psi + u) * cb + L * L * psi
+    return h / (r0 * r0 + L * L + 2.0 * r0 * L * cb)
