@@ -113,36 +113,66 @@ def test_coiled_start_is_fully_wound_and_memory_restores():
     assert phi1[0, 0] == pytest.approx(-(math.pi / 2 + H / R0), abs=1e-9)
 
 
-@pytest.mark.parametrize("bound", [0.0, 1.0])
-def test_held_coil_leaves_tangentially_or_pivots_about_a_front_held_back(bound):
-    """A held coil departing tangentially at s_D = 20 m, beyond its front at 19 m (the
-    released material still lies on the rim): alpha = s_D / r0, phi = -(pi/2 + alpha),
-    L = H - s_D, whether or not a rate payout holds the front back. With
-    the front at 18 m held back, the arm pivots about the front: an arm straight from F at
-    beta = -1.2 rad from F's radial gives phi = -alpha_F + beta, L = its length."""
-    mesh = tethers(1, H, M, R0, 10.0, "coiled", "trailing")
-    tr = ArmTracker(mesh, R0)
-    tr.prev_ad[:] = 20.0 / R0
-    s_d = 20.0
+def _tangent_tip(s_d, free):
+    """Tip of a straight arm leaving a trailing coil (on R0, from angle 0) tangentially at
+    arm coordinate s_d, free length ``free``."""
     th = -s_d / R0
     d = R0 * np.array([math.cos(th), math.sin(th)])
-    t = np.array([math.sin(th), -math.cos(th)])
-    tip = d + (H - s_d) * t
-    row = np.array([[[19.0, 20.0, 1.0, bound, np.nan]]])
-    L, phi, _, sd = tr.update(tip_rows([tip]), np.zeros((1, 1, 3)), np.zeros(1), row)
-    assert sd[0, 0] == pytest.approx(s_d, rel=1e-12)
-    assert phi[0, 0] == pytest.approx(-(math.pi / 2 + s_d / R0), abs=1e-12)
-    assert L[0, 0] == pytest.approx(H - s_d, rel=1e-12)
-    s_f, beta, l = 18.0, -1.2, 25.0
+    return d + free * np.array([math.sin(th), -math.cos(th)])
+
+
+def _pivot_tip(s_f, beta, length):
+    """Tip of a straight arm from the rim point at arm coordinate s_f, at beta from the
+    outward radial there (counter-clockwise positive)."""
+    th = -s_f / R0
+    radial = np.array([math.cos(th), math.sin(th)])
+    ccw = np.array([-math.sin(th), math.cos(th)])
+    return R0 * radial + length * (math.cos(beta) * radial + math.sin(beta) * ccw)
+
+
+def test_held_coil_leaves_tangentially_within_one_level_of_its_front():
+    """A held coil under a free payout departing tangentially at s_D = 20 m: alpha =
+    s_D / r0, phi = -(pi/2 + alpha), L = H - s_D, whether the front is behind the departure
+    point (19 m: released material still on the rim) or beyond it (21.5 m: the kink of the
+    discrete chain at the front)."""
+    mesh = tethers(1, H, M, R0, 10.0, "coiled", "trailing")
+    for front in (19.0, 21.5):
+        tr = ArmTracker(mesh, R0)
+        tr.prev_ad[:] = 20.0 / R0
+        row = np.array([[[front, front + 1.0, 1.0, 0.0, np.nan]]])
+        L, phi, _, sd = tr.update(tip_rows([_tangent_tip(20.0, H - 20.0)]),
+                                  np.zeros((1, 1, 3)), np.zeros(1), row)
+        assert sd[0, 0] == pytest.approx(20.0, rel=1e-12)
+        assert phi[0, 0] == pytest.approx(-(math.pi / 2 + 20.0 / R0), abs=1e-12)
+        assert L[0, 0] == pytest.approx(H - 20.0, rel=1e-12)
+
+
+def test_an_arm_hanging_from_its_front_pivots_about_it_and_wraps_over_its_coil():
+    """An arm straight from a front F (s_F = 18 m) that a rate payout holds back, at
+    beta = -1.2 rad from F's radial, pivots about F: phi = -alpha_F + beta, L its length;
+    swung round to the other side (beta past +pi/2) it wraps over the held coil,
+    counter-clockwise, continuously (the law no longer binding: the arm hangs on the
+    leading side)."""
+    mesh = tethers(1, H, M, R0, 10.0, "coiled", "trailing")
+    tr = ArmTracker(mesh, R0)
+    tr.prev_ad[:] = 18.0 / R0
+    s_f, l = 18.0, 25.0
+    row = np.array([[[s_f, 19.0, 1.0, 1.0, np.nan]]])
+    L, phi, _, sd = tr.update(tip_rows([_pivot_tip(s_f, -1.2, l)]), np.zeros((1, 1, 3)),
+                              np.zeros(1), row)
+    assert sd[0, 0] == s_f and L[0, 0] == pytest.approx(l, rel=1e-12)
+    assert phi[0, 0] == pytest.approx(-s_f / R0 - 1.2, abs=1e-12)
+    betas = np.linspace(-1.2, 1.5, 28)  # swing to the other side ...
+    rows = [_pivot_tip(s_f, b, l) for b in betas]
     th_f = -s_f / R0
-    radial = np.array([math.cos(th_f), math.sin(th_f)])
-    ccw = np.array([-math.sin(th_f), math.cos(th_f)])
-    tip2 = R0 * radial + l * (math.cos(beta) * radial + math.sin(beta) * ccw)
-    row2 = np.array([[[s_f, 19.0, 1.0, bound, np.nan]]])
-    L, phi, _, sd = tr.update(tip_rows([tip2]), np.zeros((1, 1, 3)), np.zeros(1), row2)
-    if bound:
-        assert sd[0, 0] == s_f and L[0, 0] == pytest.approx(l, rel=1e-12)
-        assert phi[0, 0] == pytest.approx(-s_f / R0 + beta, abs=1e-12)
-    else:  # free payout: the tangent from R, even behind the front
-        assert sd[0, 0] < s_f and phi[0, 0] == pytest.approx(
-            -(math.pi / 2 + (sd[0, 0] - 0.0) / R0), abs=1e-9)
+    for a in np.linspace(0.0, 0.6, 13)[1:]:  # ... and wind on over the coil
+        d = R0 * np.array([math.cos(th_f + a), math.sin(th_f + a)])
+        rows.append(d + (l - R0 * a) * np.array([-math.sin(th_f + a), math.cos(th_f + a)]))
+    T = len(rows)
+    rows_t = np.repeat(row, T, axis=0)
+    rows_t[betas.size:, 0, 3] = 0.0  # wound over the coil: the law does not bind there
+    L, phi, _, _ = tr.update(tip_rows(rows), np.zeros((T, 1, 3)), np.zeros(T), rows_t)
+    np.testing.assert_allclose(phi[:28, 0], -s_f / R0 + betas, atol=1e-12)
+    wound = np.linspace(0.0, 0.6, 13)[1:]
+    np.testing.assert_allclose(phi[28:, 0], -s_f / R0 + math.pi / 2 + wound, atol=1e-9)
+    np.testing.assert_allclose(L[28:, 0], l - R0 * wound, rtol=1e-9)

@@ -409,7 +409,7 @@ def open_bundles(coil, cs, nodes, mass, inv_mass, t):
 @njit(cache=True)
 def front_row(coil, cs, k, t):
     """Arm k's held coil at time t: (front coordinate, next outer level's coordinate, 1 if
-    the pinned node lies on the rim, 1 if the payout law holds the front back [m, m, -, -]).
+    the pinned node lies on the rim, 1 if the payout law holds the front back) [m, m, -, -].
     Once every level is released the front is the arm's base."""
     lo, end = coil.arm_ptr[k], coil.arm_ptr[k + 1]
     lev = lo + cs.front[k]

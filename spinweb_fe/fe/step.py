@@ -301,8 +301,8 @@ def write_row(row, t, theta, w_old, w_new, torque, j_eff, sums, se, tmax, totals
 @njit(cache=True)
 def record_arms(coil, cs, table, t):
     """Per arm at a record step (see fe.coil.front_row): the front's and the next outer
-    level's arm coordinates, pinned on the rim (1/0), held back by the payout law (1/0), and
-    the paid-out length the law allows (NaN: free payout)."""
+    level's arm coordinates, pinned on the rim (1/0), held back by the payout law (1/0),
+    and the paid-out length the law allows (NaN: free payout)."""
     allowed = payout_allowed(coil, t)
     for k in range(table.shape[0]):
         table[k, 0], table[k, 1], table[k, 2], table[k, 3] = front_row(coil, cs, k, t)

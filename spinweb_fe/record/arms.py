@@ -7,9 +7,12 @@ hub tangentially at a departure point D after winding on from A; phi is the arm'
 from the outward radial at R, counter-clockwise positive, with |phi| = pi/2 + alpha while
 wound over alpha. At each history row, per arm:
 
-- the anchor is R, except while a rate payout holds a held coil's front F back (the step
-  loop records the front and whether the law binds): then the arm hangs from F, wound over
-  alpha_F = (s_F - arm_root_coord) / r0 from R;
+- the anchor is R, except where a held coil's front F on the rim holds the arm: while a
+  rate payout holds F back, or once the arm swung over its own coil (the measure from R no
+  longer finds it wound in the coil's direction, and the tip lies on the leading side of
+  F's radial; a front that merely lags the tangent point leaves the anchor at R). The
+  arm then hangs from F, wound over
+  alpha_F = (s_F - arm_root_coord) / r0 from R (the step loop records F and the law);
 - **pivoting** about A: phi = -w alpha_A + beta, beta the angle of (tip - A) from the
   outward radial at A, continued in time (no jump at +-pi); L = |tip - A|. w is the coil's
   wrap sign (+1 trailing: clockwise), alpha_A = 0 for A = R;
@@ -18,13 +21,13 @@ wound over alpha. At each history row, per arm:
   on that side, wound over rel from A (continued in time over several turns),
   phi = -w alpha_A - c (pi/2 + rel), L the tangent length; back to pivoting when rel = 0.
 
-A coiled arm starts wrapped over its whole coil. Under a free payout the held coil is
-measured from R by its tangent point, not clipped to the discrete front: the chain kinks
-over about one element at the front, so the front lags the straight arm's departure by up
-to one level while the tip, hub and tension follow the continuum (docs/validation.md).
-Every branch meets the next continuously for a straight arm (D = A at rel = 0, phi the same
-on both sides); the anchor moves (and the measure steps) only when a bound front is
-released. omega_tip = (p x v)_z / |p|^2, the rate of the tip's polar angle about the hub
+A coiled arm starts wrapped over its whole coil. Under a free payout the held coil is thus
+measured from R by its tangent point, whatever the discrete front: the chain kinks over about
+one element at the front, so the front lags the straight arm's departure by up to one level
+while the tip, hub and tension follow the continuum (docs/validation.md). Every branch meets
+the next continuously for a straight arm (D = A at rel = 0, phi the same on both sides);
+the anchor moves (and the measure steps) when a rate payout starts or stops holding the
+arm, and when it releases a front the arm hangs from. omega_tip = (p x v)_z / |p|^2, the rate of the tip's polar angle about the hub
 axis. The same rows give a held coil's front coordinate and the payout speed, the rate of
 its paid-out length H_coord - s_D (H_coord: the tip's arm coordinate, s_D the departure
 point's arm coordinate), and log when a rate payout waits for its arm.
@@ -113,12 +116,13 @@ class ArmTracker:
     def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0,
                 rate=False) -> dict:
         """History columns of T rows, each (T, n_arms): ``arm_length``, ``arm_angle``,
-        ``tip_omega``, and with a held coil's ``arm_table`` (T, n_arms, 5) from the step loop
+        ``tip_omega``, ``tip_position`` (T, n_arms, 3), and with a held coil's ``arm_table`` (T, n_arms, 5) from the step loop
         also ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under
         a rate payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
         ``hub_angle``."""
         L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table)
-        out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip}
+        out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip,
+               "tip_position": probe_pos[:, :self.n].copy()}
         if arm_table is None:
             return out
         prev = np.vstack([self.prev_sd[None, :], sd[:-1]])
@@ -142,9 +146,15 @@ class ArmTracker:
             for t in range(T):
                 th_r = hub_angle[t] + self.root[k]
                 row = None if arm_table is None else arm_table[t, k]
-                # a rate payout holding the front back on the rim: the arm hangs from it
-                bound = row is not None and row[2] > 0.5 and row[3] > 0.5
-                alpha_a = (row[0] - self.root_coord) / self.r0 if bound else 0.0
+                # a held front on the rim anchors the arm when a rate payout holds it back
+                # or when the arm swung over its own coil (unwound from R's side and on
+                # the front's leading side)
+                alpha_a = 0.0
+                if row is not None and row[2] > 0.5:
+                    alpha_f = (row[0] - self.root_coord) / self.r0
+                    swung = not (self.mode[k] == WRAPPED and self.sense[k] == self.wrap)
+                    if row[3] > 0.5 or (swung and self._leading(alpha_f, th_r, tip_p[t, k])):
+                        alpha_a = alpha_f
                 L[t, k], phi[t, k], a_d = self._about(k, alpha_a, th_r, tip_p[t, k])
                 self.prev_phi[k] = phi[t, k]
                 if row is not None:
@@ -161,6 +171,13 @@ class ArmTracker:
         rho = math.hypot(tip[0], tip[1])
         l_tan = math.sqrt(max(rho * rho - self.r0 * self.r0, 0.0))
         return math.atan2(tip[1], tip[0]) + c * math.atan2(l_tan, self.r0), l_tan
+
+    def _leading(self, alpha_f, th_r, tip):
+        """True if the tip lies on the leading side of the radial through the front F
+        (wound over alpha_f from R): the arm cannot be leaving the coil in its direction."""
+        th_f = th_r - self.wrap * alpha_f
+        cross = math.cos(th_f) * tip[1] - math.sin(th_f) * tip[0]  # > 0: counter-clockwise
+        return self.wrap * cross > 0.0
 
     def _about(self, k, alpha_a, th_r, tip):
         """(L, phi, angle of the departure point from R along the coil) of an arm anchored

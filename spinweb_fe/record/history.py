@@ -35,6 +35,7 @@ COLUMNS = {
                                "positive; |phi| > pi/2 while coiled (phi = -(pi/2 + wound "
                                "angle) for a trailing wrap)"),
     "tip_omega": Column("rad/s", "angular velocity of the tip position about the hub axis"),
+    "tip_position": Column("m", "position of each arm's tip (corner) node, inertial frame"),
     "payout_front": Column("m", "held coil: arm coordinate of each arm's peel front (its "
                                 "base once everything is released)"),
     "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
