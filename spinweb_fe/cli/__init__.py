@@ -16,7 +16,8 @@ import sys
 from spinweb_fe import __version__
 from spinweb_fe.errors import InputError, RunError
 
-COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "info", "render", "sweep")
+COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "modes", "info", "render",
+            "sweep")
 log = logging.getLogger(__name__)
 
 
