@@ -25,9 +25,10 @@ from spinweb_fe.record.energy import energy_balance
 from spinweb_fe.run.driver import run_case
 
 ROOT = Path(__file__).resolve().parent.parent
-DEFAULT = ["paper_free_arms", "paper_free_web", "paper_feedback_web", "paper_ramp_web",
-           "paper_free_arms_stiff", "paper_free_web_stiff", "paper_feedback_web_stiff",
-           "paper_ramp_web_stiff"]
+DEFAULT = ["paper_free_arms", "paper_free_arms_eq7", "paper_free_web", "paper_two_stage_web",
+           "paper_payout_web", "paper_feedback_web", "paper_ramp_web", "tri_ramp_web",
+           "paper_free_arms_stiff", "paper_free_arms_eq7_stiff", "paper_free_web_stiff",
+           "paper_feedback_web_stiff", "paper_ramp_web_stiff"]
 
 
 def errors(h):
@@ -52,9 +53,9 @@ def main(argv=None):
     out_json = ROOT / "benchmarks" / "results" / "paper_runs.json"
     summary = json.loads(out_json.read_text()) if out_json.exists() else {}
     # the machine of the latest run; each case row carries its own date
-    summary["machine"] = {"platform": platform.platform(), "processor": platform.processor(),
-                          "python": platform.python_version(),
-                          "date": time.strftime("%Y-%m-%d")}
+    from throughput import machine  # the CPU model and ISA, as every benchmark records them
+
+    summary["machine"] = dict(machine(), date=time.strftime("%Y-%m-%d"))
     for name in args.cases:
         case = case_mod.load(ROOT / "cases" / f"{name}.toml", args.sets)
         d = Path(args.out) / name
@@ -73,6 +74,11 @@ def main(argv=None):
                "element_updates_per_s": n_el * res.steps / max(res.loop_s, 1e-9),
                "energy_error": e_err, "angular_momentum_error": k_err,
                "contact_dissipation_J": float(h["contact_dissipation"][-1]),
+               "contact_share_of_KE0": float(h["contact_dissipation"][-1]
+                                             / max(h["kinetic_energy"][0], 1e-30)),
+               "stowage": f"{case.stowage.coil}, {case.stowage.payout}"
+                          + (f", bundle {case.stowage.bundle}" if case.stowage.bundle != "none"
+                             else ""),
                "final_arm_length_m": [float(x) for x in h["arm_length"][-1]],
                "final_hub_omega": float(h["hub_omega"][-1]),
                "max_tension_N": float(h["max_tension"].max()),

@@ -245,6 +245,12 @@ def figures():
         an_map = analytic_twin(cs, web_params(cs, mesh, model)[0])[0] if web else None
         return cs, fe, info, an_case, an_map
 
+    def loose(path, t_end=None):
+        """The same case with the coil loose on the hub (the behaviour before the held coil)."""
+        cs = load_case(path, ["stowage.coil='loose'"] + ([f"time.end={t_end}"] if t_end else []))
+        fe = fe_run(cs)[0]
+        return fe, {**summary(fe), "contact_dissipation_J": float(fe["contact_dissipation"][-1])}
+
     def summary(h):
         w = h["hub_omega"]
         L = h["arm_length"][:, 0]
@@ -256,24 +262,30 @@ def figures():
 
     # Fig. 5: free deployment, arms (tethers) only, Zylon
     cs, fe, info, an, _ = fe_an(CASES / "paper_free_arms.toml")
-    plot4([(fe, "FE (Zylon tethers)", "-"), (an, "analytic (consistent)", "k--")],
+    fe_l, recs_l = loose(CASES / "paper_free_arms.toml")
+    plot4([(fe, "FE (Zylon tethers), held coil", "-"), (fe_l, "FE, loose coil", ":"),
+           (an, "analytic (consistent)", "k--")],
           IMG / "fig5.png", "Fig. 5: free deployment at 8 pi, four tethers with 10 kg tips")
-    recs["fig5"] = {"fe": summary(fe), "an": summary(an), "run": info}
+    recs["fig5"] = {"fe": summary(fe), "an": summary(an), "run": info, "fe_loose": recs_l}
     # Fig. 6: free deployment, arms only and whole web
     cs, few, info, an_w, an_wm = fe_an(CASES / "paper_free_web.toml", web=True)
-    plot4([(fe, "FE arms only", "-"), (few, "FE whole web", "-"),
+    few_l, recs_l = loose(CASES / "paper_free_web.toml")
+    plot4([(fe, "FE arms only", "-"), (few, "FE whole web, held coil", "-"),
+           (few_l, "FE whole web, loose coil", ":"),
            (an, "analytic arms only", "k--"), (an_wm, "analytic web (mapped)", "k:")],
           IMG / "fig6.png", "Fig. 6: free deployment at 8 pi, arms only and whole web (Zylon)")
     recs["fig6"] = {"fe_web": summary(few), "an_web_mapped": summary(an_wm),
-                    "an_web_case": summary(an_w), "run": info}
+                    "an_web_case": summary(an_w), "run": info, "fe_web_loose": recs_l,
+                    "fe_web_contact_dissipation_J": float(few["contact_dissipation"][-1])}
     # Fig. 7: feedback torque M0 = omega0 1e5
     cs, fe7, info, an7, an7m = fe_an(CASES / "paper_feedback_web.toml", web=True,
                                      )
-    plot4([(fe7, "FE web (Zylon)", "-"), (an7m, "analytic (mapped)", "k--"),
-           (an7, "analytic (case mapping)", "k:")],
+    fe7_l, recs_l = loose(CASES / "paper_feedback_web.toml")
+    plot4([(fe7, "FE web (Zylon), held coil", "-"), (fe7_l, "FE web, loose coil", ":"),
+           (an7m, "analytic (mapped)", "k--"), (an7, "analytic (case mapping)", "k:")],
           IMG / "fig7.png", "Fig. 7: feedback torque M = M0 (1 - omega/omega0), M0 = omega0 1e5")
     recs["fig7"] = {"fe": summary(fe7), "an_mapped": summary(an7m), "an_case": summary(an7),
-                    "run": info}
+                    "run": info, "fe_loose": recs_l}
     # Fig. 8: analytical only, r0 = 1 m, M0 = 60 pi, omega0 = pi/2, 2 pi, 8 pi
     curves, recs["fig8"] = [], {}
     for tag, lab in (("pi2", "omega0 = pi/2"), ("2pi", "omega0 = 2 pi"), ("8pi", "omega0 = 8 pi")):
@@ -284,18 +296,30 @@ def figures():
     # Figs. 9-10: spin ramp 0 -> 8 pi in 2 s; Fig. 9 Zylon, Fig. 10 1000x stiffer cable
     cs, fe9, info9, an9, an9m = fe_an(CASES / "paper_ramp_web.toml", web=True,
                                       )
-    plot4([(fe9, "FE web (Zylon)", "-"), (an9m, "analytic (mapped)", "k--"),
-           (an9, "analytic (case mapping)", "k:")],
+    fe9_l, recs_l = loose(CASES / "paper_ramp_web.toml")
+    plot4([(fe9, "FE web (Zylon), held coil", "-"), (fe9_l, "FE web, loose coil", ":"),
+           (an9m, "analytic (mapped)", "k--"), (an9, "analytic (case mapping)", "k:")],
           IMG / "fig9.png", "Fig. 9: spin ramp 0 -> 8 pi in 2 s, Zylon web")
+    t_u = first_pivot(an9m)
     recs["fig9"] = {"fe": summary(fe9), "an_mapped": summary(an9m), "run": info9,
-                    "errors": error_table(fe9, an9m, {"ramp": (0, 2), "after": (2, cs.time.end)})}
+                    "fe_loose": recs_l,
+                    "errors": error_table(fe9, an9m, {"uncoil": (0, t_u), "ramp": (0, 2),
+                                                      "after": (2, cs.time.end)}),
+                    "errors_loose": error_table(fe9_l, an9m, {"uncoil": (0, t_u),
+                                                              "ramp": (0, 2)})}
     cs, fe10, info10, an10, an10m = fe_an(CASES / "paper_ramp_web_stiff.toml", web=True,
                                           t_end=4.0)
-    plot4([(fe10, "FE web (1000x Zylon)", "-"), (an10m, "analytic (mapped)", "k--"),
-           (an10, "analytic (case mapping)", "k:")],
+    fe10_l, recs_l = loose(CASES / "paper_ramp_web_stiff.toml", t_end=4.0)
+    plot4([(fe10, "FE web (1000x Zylon), held coil", "-"), (fe10_l, "FE web, loose coil", ":"),
+           (an10m, "analytic (mapped)", "k--"), (an10, "analytic (case mapping)", "k:")],
           IMG / "fig10.png", "Fig. 10: spin ramp 0 -> 8 pi in 2 s, 1000x stiffer web (run to 4 s)")
+    t_u = first_pivot(an10m)
     recs["fig10"] = {"fe": summary(fe10), "an_mapped": summary(an10m), "run": info10,
-                     "errors": error_table(fe10, an10m, {"ramp": (0, 2), "after": (2, 4)})}
+                     "fe_loose": recs_l,
+                     "errors": error_table(fe10, an10m, {"uncoil": (0, t_u), "ramp": (0, 2),
+                                                         "after": (2, 4)}),
+                     "errors_loose": error_table(fe10_l, an10m, {"uncoil": (0, t_u),
+                                                                 "ramp": (0, 2)})}
     dump("figures", recs)
     return recs
 

@@ -44,8 +44,9 @@ def stiff_tethers_02():
 
 
 def test_stiff_tethers_follow_consistent_model(stiff_tethers_02):
-    # Study (docs/validation.md, table 1): 50 elements at cfl 0.3 give 0.17 m / 0.018 rad over
-    # the uncoiling; the limits leave a factor of about 2 for round-off-level changes.
+    # Study (docs/validation.md, table 2.1): 50 elements give 0.099 m / 0.0034 rad over the
+    # uncoiling with the held coil (0.17 m / 0.018 rad loose); tests/test_coil.py holds the
+    # tighter limits of the issue (0.25 m, 0.02 rad), these are the loose-coil era's.
     _, (err, fe, an) = stiff_tethers_02
     assert err["L"]["max"] < 0.3            # m, of 31.7 m paid out by 0.2 s
     assert err["phi"]["max"] < 0.04         # rad, of 5 rad unwound
@@ -75,9 +76,16 @@ def test_fe_resolves_inertia_errors(stiff_tethers_02):
 
 @pytest.mark.parametrize("case", VALIDATION_CASES, ids=[c.stem for c in VALIDATION_CASES])
 def test_validation_cases_run(case, tmp_path):
+    import h5py
+
     assert main(["run", str(case), "-o", str(tmp_path / case.stem), "--set", "time.end=0.004",
                  "--set", "output.history_dt=0.001", "--set", "output.frame_dt=0.002",
                  "--no-progress"]) == 0
+    with h5py.File(tmp_path / case.stem / "results.h5", "r") as h5:
+        assert h5.attrs["status"] == "completed"
+        np.testing.assert_allclose(h5["history/time"][()], np.arange(5) * 1e-3, atol=1e-12)
+        assert h5["frames/time"].shape == (3,)
+        assert np.all(np.isfinite(h5["history/kinetic_energy"][()]))
 
 
 # ---------------------------------------------------------------------------- slow
@@ -114,19 +122,23 @@ def test_stiff_tethers_spin_ramp():
 
 
 @pytest.mark.slow
-def test_web_arm_discrepancy_is_pinned():
-    """The star-folded FE web does not follow the rigid arm: the hub despins less (the web's
-    slack root and cross chains, and the web spreading). Pinned so that a fold change shows."""
-    cs = case_mod.load(ROOT / "cases" / "paper_free_web_stiff.toml",
-                     ["web.mesh_width=5.0", "time.end=0.3"])
+def test_held_web_follows_the_arm_while_it_uncoils():
+    """The star-folded stiff web with its coil held follows the mapped rigid arm over the
+    uncoiling (docs/validation.md 3.2, t = 5 m, to 0.20 s: L 1.0 m, phi 0.14 rad, hub
+    1.9 rad/s RMS); the loose coil of the last version does not (L 5 m, phi 1.4 rad, hub
+    9.7 rad/s RMS, its hub still spinning forwards at 0.3 s). Limits about 1.5x the study."""
+    sets = ["web.mesh_width=5.0", "time.end=0.3"]
+    cs = case_mod.load(ROOT / "cases" / "paper_free_web_stiff.toml", sets)
     mesh, model = prepare(cs)[:2]
     p = V.web_params(cs, mesh, model)[0]
-    err, fe, an = errors(cs, (0.0, 0.3), params=p)
-    # study (fold.ties = frame, t = 5 m): analytic -13.6 rad/s at 0.3 s, FE about +6 rad/s
-    assert an["hub_omega"][-1] < -10.0
-    assert fe["hub_omega"][-1] > 0.0  # FE hub still spins forwards at 0.3 s
-    assert err["omega_centre"]["max"] > 15.0
-    assert math.isfinite(err["L"]["max"])
+    err, fe, an = errors(cs, (0.0, 0.2), params=p)
+    assert err["L"]["rms"] < 1.5 and err["phi"]["rms"] < 0.22
+    assert err["omega_centre"]["rms"] < 3.0
+    loose = case_mod.load(ROOT / "cases" / "paper_free_web_stiff.toml",
+                          sets + ["stowage.coil='loose'"])
+    err_l, fe_l, _ = errors(loose, (0.0, 0.2), params=p)
+    assert err_l["omega_centre"]["rms"] > 3 * err["omega_centre"]["rms"]
+    assert fe_l["hub_omega"][-1] > an["hub_omega"][-1] + 10.0
 
 
 def test_triangular_web_follows_three_arm_model():
@@ -135,17 +147,19 @@ def test_triangular_web_follows_three_arm_model():
     (benchmarks/validate_analytic.py --only tri, t = 5 m, 2-4 s): L rms 0.95 m of 29.4 m,
     phi rms 0.36 rad; over this test's 2-3 s: 0.95 m, 0.17 rad, omega_tip 1.9 rad/s. As
     folded the errors are 20x larger (the slack root region). The ramp window checks the
-    arm measure's spine on a mesh whose lines cross the half-axes (docs/validation.md 3.4)."""
+    arm measure's spine on a mesh whose lines cross the half-axes (docs/validation.md 3.4).
+    Measured here (2026-12): 2-3 s L 0.95 m, phi 0.17 rad, omega_tip 1.87 rad/s; ramp 0-2 s
+    L 0.78 m, phi 0.17 rad, omega_tip 0.77 rad/s (the study's rigid-root row); bounds 1.3x."""
     sets = ["cable.youngs_modulus=180e12", "web.mesh_width=5.0", "time.end=3.0"]
     cs = case_mod.load(ROOT / "cases" / "tri_ramp_web.toml", sets)
     mesh, model = prepare(cs)[:2]
     p = V.web_params(cs, mesh, model)[0]
     assert p.n == 3 and p.H == pytest.approx(50.0 - mesh.arm_root_coord)
     err, fe, an = errors(cs, (2.0, 3.0), params=p, variant="rigid_root")
-    assert err["L"]["rms"] < 2.0                 # m, of H = 29.4 m
-    assert err["phi"]["rms"] < 0.7               # rad, of an in-plane swing of +-1.3 rad
-    assert err["omega_tip"]["rms"] < 6.0         # rad/s, of a 14-37 rad/s oscillation
-    # during the ramp (uncoiling, 7.5 rad unwound): study 1.04 m, 0.13 rad, 0.77 rad/s
+    assert err["L"]["rms"] < 1.25                # m, of H = 29.4 m
+    assert err["phi"]["rms"] < 0.23              # rad, of an in-plane swing of +-1.3 rad
+    assert err["omega_tip"]["rms"] < 2.5         # rad/s, of a 14-37 rad/s oscillation
+    # during the ramp (uncoiling, 7.5 rad unwound)
     ramp = V.error_table(fe, an, {"ramp": (0.0, 2.0)})["ramp"]
-    assert ramp["L"]["rms"] < 2.0 and ramp["phi"]["rms"] < 0.3 and ramp["omega_tip"]["rms"] < 1.5
+    assert ramp["L"]["rms"] < 1.0 and ramp["phi"]["rms"] < 0.22 and ramp["omega_tip"]["rms"] < 1.0
     assert np.min(an["arm_angle"][-1000:, 0]) < -1.0 < 1.0 < np.max(an["arm_angle"][-1000:, 0])

@@ -7,12 +7,12 @@ hub tangentially at a departure point D after winding on from A; phi is the arm'
 from the outward radial at R, counter-clockwise positive, with |phi| = pi/2 + alpha while
 wound over alpha. At each history row, per arm:
 
-- the anchor is R, except where a held coil's front F on the rim holds the arm: while a
-  rate payout holds F back, or once the arm swung over its own coil (the measure from R no
-  longer finds it wound in the coil's direction, and the tip lies on the leading side of
-  F's radial; a front that merely lags the tangent point leaves the anchor at R). The
-  arm then hangs from F, wound over
-  alpha_F = (s_F - arm_root_coord) / r0 from R (the step loop records F and the law);
+- the anchor is R, except where a held coil's front F on the rim holds the arm: under a
+  rate payout (its restraint holds F), or once the arm swung over its own coil (the
+  measure from R no longer finds it wound in the coil's direction, and the tip lies on the
+  leading side of F's radial; a front that merely lags the tangent point leaves the anchor
+  at R). The arm then hangs from F, wound over alpha_F = (s_F - arm_root_coord) / r0 from
+  R (the step loop records F and the law);
 - **pivoting** about A: phi = -w alpha_A + beta, beta the angle of (tip - A) from the
   outward radial at A, continued in time (no jump at +-pi); L = |tip - A|. w is the coil's
   wrap sign (+1 trailing: clockwise), alpha_A = 0 for A = R;
@@ -26,9 +26,10 @@ measured from R by its tangent point, whatever the discrete front: the chain kin
 one element at the front, so the front lags the straight arm's departure by up to one level
 while the tip, hub and tension follow the continuum (docs/validation.md). Every branch meets
 the next continuously for a straight arm (D = A at rel = 0, phi the same on both sides);
-the anchor moves (and the measure steps) when a rate payout starts or stops holding the
-arm, and when it releases a front the arm hangs from. omega_tip = (p x v)_z / |p|^2, the rate of the tip's polar angle about the hub
-axis. The same rows give a held coil's front coordinate and the payout speed, the rate of
+the anchor moves by one level (and the measure steps by at most that) when a rate payout
+releases the front the arm hangs from, or when the arm swings over its coil.
+omega_tip = (p x v)_z / |p|^2, the rate of the tip's polar angle about the hub axis.
+The same rows give a held coil's front coordinate and the payout speed, the rate of
 its paid-out length H_coord - s_D (H_coord: the tip's arm coordinate, s_D the departure
 point's arm coordinate), and log when a rate payout waits for its arm.
 """
@@ -120,7 +121,7 @@ class ArmTracker:
         also ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under
         a rate payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
         ``hub_angle``."""
-        L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table)
+        L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table, rate)
         out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip,
                "tip_position": probe_pos[:, :self.n].copy()}
         if arm_table is None:
@@ -135,10 +136,11 @@ class ArmTracker:
             self._watch(arm_table, sd, rows["time"])
         return out
 
-    def update(self, probe_pos, probe_vel, hub_angle, arm_table=None):
+    def update(self, probe_pos, probe_vel, hub_angle, arm_table=None, rate=False):
         """(T, n_arms, 3) tip positions / velocities, (T,) hub angle and optionally a held
-        coil's (T, n_arms, 5) arm table -> (L, phi, omega_tip, departure coordinate), each
-        (T, n_arms); the departure is NaN without a held coil."""
+        coil's (T, n_arms, 5) arm table (``rate``: paid out by a rate law) -> (L, phi,
+        omega_tip, departure coordinate), each (T, n_arms); the departure is NaN without a
+        held coil."""
         T, n = probe_pos.shape[0], self.n
         tip_p, tip_v = probe_pos[:, :n], probe_vel[:, :n]
         L, phi, sd = np.empty((T, n)), np.empty((T, n)), np.full((T, n), np.nan)
@@ -146,14 +148,15 @@ class ArmTracker:
             for t in range(T):
                 th_r = hub_angle[t] + self.root[k]
                 row = None if arm_table is None else arm_table[t, k]
-                # a held front on the rim anchors the arm when a rate payout holds it back
-                # or when the arm swung over its own coil (unwound from R's side and on
-                # the front's leading side)
+                # a held front on the rim anchors the arm under a rate payout (the
+                # restraint holds it there) or when the arm swung over its own coil
+                # (unwound from R's side and on the front's leading side)
                 alpha_a = 0.0
                 if row is not None and row[2] > 0.5:
                     alpha_f = (row[0] - self.root_coord) / self.r0
                     swung = not (self.mode[k] == WRAPPED and self.sense[k] == self.wrap)
-                    if row[3] > 0.5 or (swung and self._leading(alpha_f, th_r, tip_p[t, k])):
+                    if rate or row[3] > 0.5 or (swung and self._leading(alpha_f, th_r,
+                                                                       tip_p[t, k])):
                         alpha_a = alpha_f
                 L[t, k], phi[t, k], a_d = self._about(k, alpha_a, th_r, tip_p[t, k])
                 self.prev_phi[k] = phi[t, k]
