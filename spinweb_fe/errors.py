@@ -47,13 +47,18 @@ class RunInterrupted(RunError):
     ----------
     signame : str
         'SIGINT' or 'SIGTERM'.
-    time : float [s]
-        Simulated time of the stop.
+    time : float [s] or None
+        Simulated time of the stop (None: before the run started).
+    when : str
+        Where it stopped when there is no time, e.g. 'during set-up'.
     """
 
-    def __init__(self, signame, time):
+    def __init__(self, signame, time, when=""):
         super().__init__(f"interrupted by {signame}", time=time)
         self.signame = signame
+        self.when = when
 
     def __str__(self):
+        if self.time is None:
+            return " ".join(filter(None, (f"interrupted by {self.signame}", self.when)))
         return f"interrupted by {self.signame} at t = {self.time:.6g} s"

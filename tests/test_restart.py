@@ -12,6 +12,7 @@ import pytest
 from spinweb_fe.io import checkpoint as ckmod
 from spinweb_fe.cli import main
 from spinweb_fe.fe.coil import CoilState
+from spinweb_fe.fe.rupture import StrengthState
 from spinweb_fe.fe.state import HubState, State, Totals, to_arrays
 
 CASES = Path(__file__).parent.parent / "cases"
@@ -66,8 +67,8 @@ def test_restart_cuts_back_what_was_written_after_the_checkpoint(reference, tmp_
     kept = tmp_path / "checkpoint_at_0.1.h5"
     real = ckmod.write_checkpoint
 
-    def keep_a_copy(path, ck):
-        real(path, ck)
+    def keep_a_copy(path, ck, **kw):
+        real(path, ck, **kw)
         if ck.steps * ck.dt == pytest.approx(0.1):
             shutil.copy(path, kept)
 
@@ -108,7 +109,9 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     st = State(pos, rng.standard_normal((7, 3)), rng.random(7), rng.random(7),
                HubState(one(), one(), one()),
                CoilState(np.array([3, 0], np.int64), np.array([True, False])),
-               Totals(one(), one(), one()), np.array([12345], np.int64), one())
+               Totals(one(), one(), one()), np.array([12345], np.int64), one(),
+               StrengthState(np.array([True, False, True]), rng.standard_normal(3), one(),
+                             np.array([2], np.int64)))
     entries = [(0.0, "frames/web_000000.vtu"), (0.05, "frames/web_000001.vtu")]
     memory = {"arms": {"prev_phi": np.array([np.nan, 1.0]),
                        "prev_wound": np.array([True, False])},

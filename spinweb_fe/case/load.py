@@ -124,6 +124,9 @@ def _coerce(src, dotted, field: Field, value):
     elif kind == "str":
         if not isinstance(value, str):
             raise InputError(src, dotted, f"expected a string, got {value!r}")
+    elif kind == "bool":
+        if not isinstance(value, bool):
+            raise InputError(src, dotted, f"expected true or false, got {value!r}")
     elif kind == "table":
         return _table(src, dotted, value)
     chk = field.check
@@ -204,6 +207,9 @@ def _cross_check(src, scene, raw, t):
         raise InputError(src, "fold.pattern",
                          f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
     _check_stowage(src, scene, raw, t)
+    if t["cable"]["rupture"] and t["cable"]["failure_strain"] is None:
+        raise InputError(src, "cable.rupture", "needs cable.failure_strain (the strain at "
+                         "which an element breaks)")
     hub = t["hub"]
     if hub["inertia"] is None:
         hub["inertia"] = hub["mass"] * hub["radius"] * hub["radius"]
@@ -297,7 +303,12 @@ def _check_sizes(src, scene, t):
         web = t["web"]
         n = web["side"] / web["mesh_width"]
         n_elems = 2.0 * n * (n + 1.0) * web["elements_per_segment"]
-        key = "web.mesh_width" if web["elements_per_segment"] == 1 else "web.elements_per_segment"
+        # the key furthest from its default is the one at fault (web.side = 1e9, say)
+        d = SCHEMA["web"]
+        far = {"web.side": (web["side"] / d["side"].default) ** 2,
+               "web.mesh_width": (d["mesh_width"].default / web["mesh_width"]) ** 2,
+               "web.elements_per_segment": float(web["elements_per_segment"])}
+        key = max(far, key=far.get)
     else:
         n_elems = float(t["tethers"]["count"]) * t["tethers"]["elements"]
         key = "tethers.elements"

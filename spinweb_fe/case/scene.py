@@ -21,6 +21,7 @@ from spinweb_fe.errors import InputError
 from spinweb_fe.fe.coil import BUNDLES, build_coil, rate_table
 from spinweb_fe.fe.control import Control, make_control
 from spinweb_fe.fe.model import Model, build_model, choose_dt
+from spinweb_fe.fe.rupture import make_strength
 from spinweb_fe.fe.state import State, initial_state
 
 MAX_STEPS = 1e10  # more steps than this is a units slip (days of run time), not a case
@@ -84,7 +85,8 @@ def eq7_line_density(mesh: Mesh, arm_mass: float) -> np.ndarray:
 
 
 def model_from_case(case, mesh: Mesh) -> Model:
-    """Model for a validated case and its mesh (with its stowed coil, if any)."""
+    """Model for a validated case and its mesh (with its stowed coil and its cable strength,
+    if any)."""
     cab, hub = case.cable, case.hub
     arm_mass = case.tethers.arm_mass if case.scene == "tethers" else None
     model = build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
@@ -92,6 +94,9 @@ def model_from_case(case, mesh: Mesh) -> Model:
                         hub_friction=hub.friction,
                         line_density=None if arm_mass is None else eq7_line_density(mesh,
                                                                                     arm_mass))
+    if cab.failure_strain is not None:
+        model = dataclasses.replace(model, strength=make_strength(
+            mesh.n_elems, cab.failure_strain, cab.rupture))
     st = case.stowage
     if st.coil is None or (st.coil == "loose" and st.bundle == "none"):
         return model  # nothing to hold or bundle: the kernels skip the coil

@@ -24,7 +24,8 @@ MAX_FRAMES = 100_000  # time.end / output.frame_dt
 class Field:
     """One case key: its type, default, and check.
 
-    kind: 'float' | 'int' | 'str' | 'bool' | 'table' (a list of [t, value] pairs of numbers);
+    kind: 'float' | 'int' | 'str' | 'bool' (true / false) | 'table' (a list of [t, value]
+    pairs of numbers);
     check: 'pos' (> 0), 'nonneg' (>= 0),
     'frac' (0 < x <= 1), 'finite', 'nonzero', a tuple of allowed strings, or None.
     """
@@ -73,6 +74,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "density": F("float", 1540.0, "pos", "kg/m^3", "cable density rho"),
         "area": F("float", 1.025e-5, "pos", "m^2", "cross-section area A"),
         "damping_ratio": F("float", 0.0, "nonneg", "", "axial damping, fraction of critical"),
+        "failure_strain": F("float", None, "pos", "", "strain at which the cable breaks "
+                            "(tensile strength / E); absent: no strength check"),
+        "rupture": F("bool", False, None, "", "elements whose strain exceeds failure_strain "
+                     "break for good (false: only the margins are recorded)"),
     },
     "tip_mass": {
         "mass": F("float", 10.0, "nonneg", "kg", "point mass at each web corner / tether tip"),

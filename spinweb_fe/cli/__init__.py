@@ -11,14 +11,27 @@ import argparse
 import importlib
 import logging
 import re
+import signal
 import sys
+import threading
 
+import spinweb_fe
 from spinweb_fe import __version__
-from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.errors import InputError, RunError, RunInterrupted
 
 COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "modes", "info", "render",
             "sweep")
 log = logging.getLogger(__name__)
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows an option's default unless its help already says it (or it has none)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "default" in text.lower() or action.default in (None, False, [], argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,8 +40,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="spinweb", description=__doc__.splitlines()[0],
-                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = _Parser(prog="spinweb", description=spinweb_fe.__doc__.strip() + " One "
+                     "subcommand per task; docs/interface.md lists them all.",
+                     formatter_class=HelpFormatter)
     parser.add_argument("--version", action="version", version=f"spinweb {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -36,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMANDS:
         mod = importlib.import_module(f"spinweb_fe.cli.{name}")
         p = mod.add_parser(sub)
+        p.formatter_class = HelpFormatter
         p.set_defaults(_run=mod.run)
     return parser
 
@@ -45,30 +60,42 @@ def _one_line(text) -> str:
     return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], str(text))
 
 
+def _terminated(signum, frame):  # SIGTERM before a run installs its own handler
+    raise RunInterrupted("SIGTERM", None)
+
+
 def main(argv=None) -> int:
     """Run the CLI; returns the exit code instead of exiting."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
+    try:
+        return _main(argv)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main(argv) -> int:
+    command = "spinweb"
     try:
         args = build_parser().parse_args(argv)
+        command = args.command
+        logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                            format="%(message)s", stream=sys.stderr, force=True)
+        return int(args._run(args) or 0)
     except InputError as exc:
         print(f"spinweb: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except SystemExit as exc:  # --help / --version
         return int(exc.code or 0)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(message)s", stream=sys.stderr, force=True)
-    try:
-        return int(args._run(args) or 0)
-    except InputError as exc:
-        print(f"spinweb: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
-    except RunError as exc:  # solver.RunInterrupted (a signal) carries ``signame``
-        what = "" if getattr(exc, "signame", None) else "run failed: "
+    except RunError as exc:  # RunInterrupted (a signal) carries ``signame``
+        what = "" if getattr(exc, "signame", None) else f"{command} failed: "
         print(f"spinweb: {what}{_one_line(exc)}", file=sys.stderr)
         return 1
     except OSError as exc:
-        print(f"spinweb: run failed: I/O error: {_one_line(exc)}", file=sys.stderr)
+        print(f"spinweb: {command} failed: I/O error: {_one_line(exc)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # SIGINT outside the step loop (mesh, compile)
+    except KeyboardInterrupt:  # SIGINT outside the step loop (start-up, reading files)
         print("spinweb: interrupted by SIGINT", file=sys.stderr)
         return 1
 

@@ -10,45 +10,66 @@ def add_parser(sub):
 
 
 def summary(path) -> str:
-    """Multi-line text summary of a result file."""
+    """Multi-line text summary of a result file (also of one that a run is writing)."""
+    from spinweb_fe.io.h5 import read_result
+
+    return read_result(path, lambda h5: "\n".join(_lines(Path(path), h5)))
+
+
+def _lines(path, h5) -> list:
     import numpy as np
 
-    from spinweb_fe.io.h5 import open_h5
-    from spinweb_fe.record.energy import energy_balance
+    from spinweb_fe.io.h5 import history_of
+    from spinweb_fe.post.strength import summary_lines
+    from spinweb_fe.record.energy import balance_error
 
-    path = Path(path)
-    with open_h5(path) as h5:
-        a = h5.attrs
-        lines = [f"file: {path}"]
-        for k in ("format_version", "spinweb_version", "model", "status", "dt", "steps",
-                  "wall_time_s"):
-            if k in a:
-                lines.append(f"{k}: {a[k]}")
-        if "mesh" in h5:
-            m = h5["mesh"]
-            lines.append(f"mesh: {m['points'].shape[0]} nodes, {m['elements'].shape[0]} elements, "
-                         f"mass {m['node_mass'][()].sum():.4g} kg (without hub)")
-        if "history" in h5:
-            h = {k: h5["history"][k][()] for k in h5["history"]}
-            t = h["time"]
-            lines.append(f"history: {len(t)} rows, t = {t[0]:g} .. {t[-1]:g} s")
-            if len(t):
-                lines.append(f"hub_omega: {h['hub_omega'][0]:.6g} -> {h['hub_omega'][-1]:.6g} rad/s")
-                if "arm_length" in h:
-                    lines.append(f"arm_length (final, per arm): "
-                                 f"{np.array2string(h['arm_length'][-1], precision=4)} m")
-                if "angular_momentum" in h:
-                    K = h["angular_momentum"]
-                    lines.append(f"angular_momentum: {K[0]:.6g} -> {K[-1]:.6g} N m s")
-                if "contact_dissipation" in h:
-                    e = energy_balance(h)
-                    scale = max(abs(h["kinetic_energy"][0]) + abs(h["strain_energy"][0]), 1e-30)
-                    lines.append(f"energy balance drift: {np.max(np.abs(e - e[0])) / scale:.3e} "
-                                 "(relative to the initial energy)")
-                lines.append(f"max_tension: {np.max(h['max_tension']):.6g} N")
-        if "frames" in h5:
-            lines.append(f"frames: {h5['frames']['time'].shape[0]}")
-    return "\n".join(lines)
+    a = h5.attrs
+    lines = [f"file: {path}"]
+    for k in ("format_version", "spinweb_version", "model", "status", "dt", "steps",
+              "wall_time_s"):
+        if k in a:
+            lines.append(f"{k}: {a[k]}")
+    h = history_of(h5)
+    if a.get("status") == "running":
+        lines.append(_live(path, h))
+    if "mesh" in h5:
+        m = h5["mesh"]
+        lines.append(f"mesh: {m['points'].shape[0]} nodes, {m['elements'].shape[0]} elements, "
+                     f"mass {m['node_mass'][()].sum():.4g} kg (without hub)")
+    if "history" in h5 and not h:
+        lines.append("history: 0 rows (the run stopped before its first rows were written)")
+    if h:
+        t = h["time"]
+        lines.append(f"history: {len(t)} rows, t = {t[0]:g} .. {t[-1]:g} s")
+        lines.append(f"hub_omega: {h['hub_omega'][0]:.6g} -> {h['hub_omega'][-1]:.6g} rad/s")
+        if "arm_length" in h:
+            lines.append(f"arm_length (final, per arm): "
+                         f"{np.array2string(h['arm_length'][-1], precision=4)} m")
+        if "angular_momentum" in h:
+            K = h["angular_momentum"]
+            lines.append(f"angular_momentum: {K[0]:.6g} -> {K[-1]:.6g} N m s")
+        if "contact_dissipation" in h:
+            lines.append(f"energy balance drift: {balance_error(h):.3e} (relative to the "
+                         "energy scale of the run's audit: max(initial energy, torque work))")
+        lines.append(f"max_tension: {np.max(h['max_tension']):.6g} N")
+    if "frames" in h5:
+        lines.append(f"frames: {h5['frames']['time'].shape[0]}")
+    lines += summary_lines(h5)
+    return lines
+
+
+def _live(path, h) -> str:
+    """Whether a 'running' file is being written by a live run, or its run was killed."""
+    from spinweb_fe.io.folder import describe, holder
+
+    folder = path.parent
+    info = holder(folder)
+    if info is not None:
+        return f"live: a run is writing this file ({describe(info)})"
+    when = f"after t = {h['time'][-1]:.6g} s" if h else "before its first rows"
+    again = (f"continue it with `spinweb run --restart {folder}`"
+             if (folder / "checkpoint.h5").is_file() else "run the case again (no checkpoint)")
+    return (f"interrupted: no process is running it any more (killed {when}?); {again}")
 
 
 def run(args) -> int:

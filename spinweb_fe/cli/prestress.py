@@ -85,9 +85,15 @@ def run(args) -> int:
         case.web, mesh_width=t, elements_per_segment=1))
     # same areal density on the analysis mesh: cable length per area goes as 1/t
     line_density = case.cable.density * case.cable.area * t / t_case
-    mesh = _flat_mesh(case, args.no_hub)
+    given = args.mesh_width is not None  # the analysis mesh is then --mesh-width's
+    try:
+        mesh = _flat_mesh(case, args.no_hub)
+    except InputError as exc:
+        if given and exc.key == "web.mesh_width":
+            raise InputError("--mesh-width", "", exc.reason) from None
+        raise
     if mesh.n_elems > MAX_BARS:
-        raise InputError(case.source, "web.mesh_width",
+        raise InputError(*(("--mesh-width", "") if given else (case.source, "web.mesh_width")),
                          f"{mesh.n_elems} bars are too many for the dense force method "
                          f"(limit {MAX_BARS}); use --mesh-width with a coarser t")
     omega = _spin_rate(case, args.omega)

@@ -30,6 +30,9 @@ def add_parser(sub):
     p.add_argument("--threads", type=int, default=None, metavar="N",
                    help="threads of the step loop (default: $SPINWEB_THREADS, else 2 for "
                         "large webs, 1 otherwise; on --restart: the checkpoint's)")
+    p.add_argument("--force", action="store_true",
+                   help="run even if the estimate exceeds the budget (a day of wall time, "
+                        "80 %% of the memory, the free disk space; docs/robustness.md)")
     p.add_argument("--restart", default=None, metavar="DIR",
                    help="continue the run in DIR from DIR/checkpoint.h5 (only time.end may "
                         "be changed with --set)")
@@ -51,7 +54,7 @@ def run(args) -> int:
         from spinweb_fe.run.restart import restart_case
 
         res = restart_case(restart, args.sets, progress=not args.no_progress,
-                           checkpoint_dt=ck_dt, threads=threads)
+                           checkpoint_dt=ck_dt, threads=threads, force=args.force)
         log.info("continued %s to t = %.6g s (%d more history rows, %d frames)",
                  restart, float(res.state.time[0]), len(res.history["time"]), res.frames)
         return 0
@@ -62,7 +65,7 @@ def run(args) -> int:
     from spinweb_fe.run.driver import run_case
 
     res = run_case(case, directory, progress=not args.no_progress, checkpoint_dt=ck_dt or 0.0,
-                   threads=threads)
+                   threads=threads, force=args.force)
     log.info("wrote %s (%d history rows, %d frames)", directory / "results.h5",
              len(res.history["time"]), res.frames)
     return 0

@@ -40,6 +40,7 @@ def _fmt(v):
 
 
 def run(args) -> int:
+    from spinweb_fe.io.folder import check_writable
     from spinweb_fe.sweep import report as sweep_report
     from spinweb_fe.sweep import run as sw
 
@@ -47,6 +48,7 @@ def run(args) -> int:
         raise InputError("--workers", "", f"must be >= 1, got {args.workers}")
     spec = sw.load_sweep(args.sweep, mode=args.mode, sets=args.sets)
     out = Path(args.output) if args.output else Path("out") / Path(args.sweep).stem
+    check_writable(out)  # before a cluster starts: one line, not a traceback per run
     if args.dry_run:
         print(f"{len(spec.runs)} {spec.mode} runs of {spec.base} -> {out}/runs/")
         for r in spec.runs:

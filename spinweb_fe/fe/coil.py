@@ -351,11 +351,14 @@ def free_length(coil, cs, k):
 
 
 @njit(cache=True)
-def pulls(coil, elems, pos, lev):
+def pulls(coil, elems, pos, lev, broken=None):
     """True if a free element of level ``lev`` is taut and points outward from the hub at
-    its node of this level: the free part pulls the level off the hub."""
+    its node of this level: the free part pulls the level off the hub (a ``broken`` element,
+    fe.rupture, pulls nothing)."""
     for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
         e, a, b = coil.test_elem[q], coil.test_from[q], coil.test_to[q]
+        if broken is not None and broken.shape[0] > 0 and broken[e]:
+            continue
         dx = pos[b, 0] - pos[a, 0]
         dy = pos[b, 1] - pos[a, 1]
         dz = pos[b, 2] - pos[a, 2]
@@ -366,10 +369,11 @@ def pulls(coil, elems, pos, lev):
 
 
 @njit(cache=True)
-def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t):
+def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, broken=None):
     """After a step: release the front level of every arm whose free part pulls it off the
-    hub and whose paid-out length would then not exceed the payout law's at time t.
-    Returns the hub's effective inertia without the released nodes [kg m^2]."""
+    hub and whose paid-out length would then not exceed the payout law's at time t (broken
+    elements: see :func:`pulls`). Returns the hub's effective inertia without the released
+    nodes [kg m^2]."""
     allowed = payout_allowed(coil, t)
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
@@ -378,7 +382,7 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t):
             continue
         after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end
                                    else coil.arm_base[k])
-        if after > allowed or not pulls(coil, elems, pos, lev):
+        if after > allowed or not pulls(coil, elems, pos, lev, broken):
             continue
         for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
             i = coil.level_nodes[p]

@@ -9,13 +9,14 @@ can build them by hand for a 3-node model and call one step.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.rupture import Strength, no_strength
 
 
 class Elements(NamedTuple):
@@ -97,6 +98,7 @@ class Kernel(NamedTuple):
     nodes: Nodes
     hub: Hub
     coil: Coil
+    strength: Strength
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +121,8 @@ class Model:
     dt_critical : float [s]
         min over the elements of L0 / sqrt(E A / mu), reduced for damping by
         sqrt(1 + zeta^2) - zeta.
+    strength : Strength
+        Failure strain per element and rupture (fe.rupture; empty: no strength check).
     """
 
     mesh: Mesh
@@ -129,11 +133,12 @@ class Model:
     tip_idx: np.ndarray
     wave_speed: float
     dt_critical: float
+    strength: Strength = field(default_factory=no_strength)
 
     @property
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
-        return Kernel(self.elements, self.nodes, self.hub, self.coil)
+        return Kernel(self.elements, self.nodes, self.hub, self.coil, self.strength)
 
     @property
     def n_nodes(self) -> int:

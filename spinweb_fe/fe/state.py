@@ -9,6 +9,7 @@ import numpy as np
 
 from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
 from spinweb_fe.fe.hub import place_rigid
+from spinweb_fe.fe.rupture import StrengthState, no_strength, strength_start
 
 
 class HubState(NamedTuple):
@@ -56,6 +57,8 @@ class State(NamedTuple):
         n.
     time : (1,) float64 [s]
         t_n = n dt.
+    strength : spinweb_fe.fe.rupture.StrengthState
+        Broken elements, the strain peak since the last row, the rupture dissipation.
     """
 
     node_pos: np.ndarray
@@ -67,6 +70,7 @@ class State(NamedTuple):
     totals: Totals
     step: np.ndarray
     time: np.ndarray
+    strength: StrengthState
 
     def copy(self) -> "State":
         """A deep copy (every array copied)."""
@@ -85,11 +89,15 @@ def to_arrays(state: State) -> dict:
 
 
 def from_arrays(arrays: dict) -> State:
-    """Inverse of :func:`to_arrays` (KeyError names a missing field)."""
-    nested = {"hub": HubState, "coil": CoilState, "totals": Totals}
+    """Inverse of :func:`to_arrays` (KeyError names a missing field). Arrays without the
+    strength fields (written before they existed, by scenes without a strength check) get
+    those of no check."""
+    nested = {"hub": HubState, "coil": CoilState, "totals": Totals, "strength": StrengthState}
     kw = {}
     for name in State._fields:
-        if name in nested:
+        if name == "strength" and not any(k.startswith("strength/") for k in arrays):
+            kw[name] = strength_start(no_strength())
+        elif name in nested:
             kw[name] = nested[name](*(arrays[f"{name}/{k}"] for k in nested[name]._fields))
         else:
             kw[name] = arrays[name]
@@ -123,4 +131,4 @@ def initial_state(model, omega: float, spin: str = "all", held: bool = True) -> 
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),
                                                np.array([inertia])), cs,
                  Totals(np.zeros(1), np.zeros(1), np.zeros(1)), np.zeros(1, np.int64),
-                 np.zeros(1))
+                 np.zeros(1), strength_start(model.strength))

@@ -14,7 +14,7 @@ Central differences with half-step velocities (Kratos / LS-DYNA style):
 The kernels take the named data of :mod:`spinweb_fe.fe.model` (``Model.kernel``: elements,
 nodes, hub, coil), :mod:`spinweb_fe.fe.state` (``State``), the law (``KernelLaw``) and
 ``Recording`` below. The features they call live in their own files of ``fe/`` (contact, hub,
-coil, control): the numba cache of every ``fe`` kernel is stamped with the whole folder
+coil, control, rupture): the numba cache of every ``fe`` kernel is stamped with the whole folder
 (:mod:`spinweb_fe.fe.cache`), so an edit of a helper recompiles its callers. Constants come
 in as arguments, never as module globals. The element pass uses ``error_model="numpy"`` so
 that divisions carry no Python zero-division check (a branch per element); its divisor is
@@ -33,6 +33,7 @@ from spinweb_fe.fe.coil import (front_row, gather_bundles, held_moment, open_bun
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
+from spinweb_fe.fe.rupture import record_strength, strength_pass
 
 #: columns of the per-record scalar table that ``advance`` writes (see
 #: spinweb_fe.record.history for units and meaning)
@@ -57,6 +58,9 @@ class Recording(NamedTuple):
     arm_table : (rows, n_arms, 5) float64
         Per arm: front and next outer level coordinates [m], pinned on the rim (1/0), held
         back by the payout law (1/0), allowed payout [m] (see record_arms).
+    strength_table : (rows, 5) float64
+        Scenes with a failure strain: the row of fe.rupture.STRENGTH_COLUMNS ((rows, 0)
+        otherwise).
     """
 
     every: int
@@ -65,7 +69,7 @@ class Recording(NamedTuple):
     probe_pos: np.ndarray
     probe_vel: np.ndarray
     arm_table: np.ndarray
-
+    strength_table: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
@@ -236,9 +240,14 @@ def split(n, parts):
 
 
 @njit(cache=True)
-def element_pass(elems, pos, vel, force, ebounds, eout, record, no_tension):
+def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no_tension, dt):
     """Element forces of this step into the force buffers: one thread (force (1, n, 3)) or
-    several (one buffer per thread). Returns (strain energy, max tension, damping power)."""
+    several (one buffer per thread). A scene with a failure strain takes the strength pass
+    (fe.rupture; ``ss`` its state, ``eout`` (nt, 8), ``dt`` the step). Returns (strain
+    energy, max tension, damping power)."""
+    if strength.fail.shape[0] > 0:
+        return strength_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record,
+                             no_tension, dt)
     if force.shape[0] == 1:
         return accumulate_elements(elems, pos, vel, force[0], 0, elems.nodes.shape[0], record,
                                    no_tension)
@@ -311,12 +320,12 @@ def record_arms(coil, cs, table, t):
 
 @njit(cache=True)
 def coil_step(coil, elems, nodes, state, t_next):
-    """After a step: release the fronts that the free parts pull off the hub, then open the
-    bundles that are due."""
+    """After a step: release the fronts that the free parts pull off the hub (broken
+    elements pull nothing), then open the bundles that are due."""
     cs = state.coil
     state.hub.inertia[0] = release_fronts(coil, cs, elems, nodes, state.node_pos,
                                           state.node_mass, state.node_inv_mass,
-                                          state.hub.inertia[0], t_next)
+                                          state.hub.inertia[0], t_next, state.strength.broken)
     if coil.bundle_code > 0:
         open_bundles(coil, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
 
@@ -333,12 +342,14 @@ def advance(model, law, state, force, rec, dt, nsteps):
     (fixed chunks, fixed reduction order). Returns (status, rows): 0 ok, 1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
+    strength = model.strength
+    has_strength = strength.fail.shape[0] > 0
     nt = force.shape[0]
     pos = state.node_pos
     vel = state.node_vel
     ebounds = split(elems.nodes.shape[0], nt)
     nbounds = split(pos.shape[0], nt)
-    eout = np.zeros((nt, 3))
+    eout = np.zeros((nt, 8))
     nout = np.zeros((nt, 5))
     sums = np.zeros(5)
     incr = np.zeros(3)
@@ -351,8 +362,8 @@ def advance(model, law, state, force, rec, dt, nsteps):
         step = state.step[0]
         record = step % rec.every == 0
         t = step * dt
-        se, tmax, pdamp = element_pass(elems, pos, vel, force, ebounds, eout, record,
-                                       no_tension)
+        se, tmax, pdamp = element_pass(elems, strength, state.strength, pos, vel, force,
+                                       ebounds, eout, record, no_tension, dt)
         tau = moment_of(pos, force, hub.tied_idx)
         if has_coil:
             tau += held_moment(coil, state.coil, pos, force)
@@ -363,6 +374,8 @@ def advance(model, law, state, force, rec, dt, nsteps):
         if record:
             record_probes(rec, nrec, pos, vel, vprobe, True)
             record_arms(coil, state.coil, rec.arm_table[nrec], t)
+            if has_strength:
+                record_strength(state.strength, rec.strength_table[nrec])
         theta = state.hub.angle[0]
         w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout,
                                     sums, record)

@@ -98,8 +98,14 @@ class Checkpoint:
         return float(self.state.time[0])
 
 
-def write_checkpoint(path, ck: Checkpoint) -> Path:
+def write_checkpoint(path, ck: Checkpoint, on_error=None) -> Path:
     """Write ``ck`` to ``path`` atomically (temporary file, then ``os.replace``).
+
+    Parameters
+    ----------
+    on_error : callable() or None
+        Called when a write fails, before the temporary file is closed and removed (the
+        run's disk guard frees its reserve there, so that the close can succeed).
 
     Returns
     -------
@@ -108,36 +114,59 @@ def write_checkpoint(path, ck: Checkpoint) -> Path:
     """
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as h5:
-        a = h5.attrs
-        a["format"] = CHECKPOINT_FORMAT
-        a["checkpoint_version"] = CHECKPOINT_VERSION
-        a["spinweb_version"] = __version__
-        a["written"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        a["dt"] = float(ck.dt)
-        a["steps"] = ck.steps
-        a["time"] = ck.time
-        a["history_rows"] = int(ck.history_rows)
-        a["frames"] = int(ck.frames)
-        a["checkpoint_dt"] = float(ck.checkpoint_dt)
-        a["threads"] = int(ck.threads)
-        a["run_id"] = ck.run_id
-        a["case"] = ck.case_toml
-        a["case_source"] = ck.case_source
-        g = h5.create_group("state")
-        for name, value in to_arrays(ck.state).items():
-            g.create_dataset(name, data=np.asarray(value))
-        m = h5.create_group("memory")
-        for owner, items in ck.memory.items():
-            mg = m.create_group(owner)
-            for name, value in items.items():
-                mg.create_dataset(name, data=np.asarray(value))
-        p = h5.create_group("pvd")
-        p.create_dataset("time", data=np.array([t for t, _ in ck.pvd_entries], dtype=np.float64))
-        p.create_dataset("file", data=np.array([f for _, f in ck.pvd_entries], dtype=object),
-                         dtype=h5py.string_dtype())
-    os.replace(tmp, path)
+    h5 = h5py.File(tmp, "w")
+    try:
+        _fill(h5, ck)
+        h5.close()
+        os.replace(tmp, path)
+    except BaseException:
+        if on_error is not None:
+            on_error()
+        try:
+            h5.close()
+        except Exception:  # noqa: BLE001 - the first error is the one to report
+            pass
+        tmp.unlink(missing_ok=True)
+        raise
     return path
+
+
+def _fill(h5, ck: Checkpoint):
+    a = h5.attrs
+    a["format"] = CHECKPOINT_FORMAT
+    a["checkpoint_version"] = CHECKPOINT_VERSION
+    a["spinweb_version"] = __version__
+    a["written"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    a["dt"] = float(ck.dt)
+    a["steps"] = ck.steps
+    a["time"] = ck.time
+    a["history_rows"] = int(ck.history_rows)
+    a["frames"] = int(ck.frames)
+    a["checkpoint_dt"] = float(ck.checkpoint_dt)
+    a["threads"] = int(ck.threads)
+    a["run_id"] = ck.run_id
+    a["case"] = ck.case_toml
+    a["case_source"] = ck.case_source
+    g = h5.create_group("state")
+    for name, value in to_arrays(ck.state).items():
+        g.create_dataset(name, data=np.asarray(value))
+    m = h5.create_group("memory")
+    for owner, items in ck.memory.items():
+        mg = m.create_group(owner)
+        for name, value in items.items():
+            mg.create_dataset(name, data=np.asarray(value))
+    p = h5.create_group("pvd")
+    p.create_dataset("time", data=np.array([t for t, _ in ck.pvd_entries], dtype=np.float64))
+    p.create_dataset("file", data=np.array([f for _, f in ck.pvd_entries], dtype=object),
+                     dtype=h5py.string_dtype())
+
+
+def checkpoint_bytes(ck: Checkpoint) -> int:
+    """About the size of ``ck``'s file [bytes] (arrays, entries, 64 KB of metadata)."""
+    arrays = [np.asarray(v) for v in to_arrays(ck.state).values()]
+    arrays += [np.asarray(v) for items in ck.memory.values() for v in items.values()]
+    return (sum(a.nbytes for a in arrays) + 64 * len(ck.pvd_entries) + len(ck.case_toml)
+            + 65536)
 
 
 def _read(h5) -> tuple:

@@ -1,9 +1,14 @@
 """Run outputs: ``results.h5`` (histories and frames, appended and flushed at every event)
 and the ParaView collection ``web.pvd`` + ``frames/web_NNNNNN.vtu`` (valid after every frame).
+
+Before each write the free disk space is checked (:class:`spinweb_fe.io.space.DiskGuard`);
+a write that fails anyway is undone: every dataset is cut back to what the last flush
+holds, the partial frame file is removed, and the run stops with a :class:`RunError`.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
 from pathlib import Path
@@ -11,12 +16,37 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from spinweb_fe.errors import RunError
 from spinweb_fe.io.checkpoint import CHECKPOINT_NAME
 from spinweb_fe.io.h5 import write_root_attrs
 from spinweb_fe.io.mesh import write_mesh_group
-from spinweb_fe.io.vtk import write_pvd, write_vtu
+from spinweb_fe.io.space import no_space
+from spinweb_fe.io.vtk import append_pvd, write_pvd, write_vtu
 from spinweb_fe.record.history import COLUMNS
 from spinweb_fe.record.recorders import Recorder
+from spinweb_fe.record.strength import strength_cells
+
+CHUNK_VALUES = 2 ** 15  # float64 values per dataset chunk (256 KB): bounded file growth
+PVD_LINE = 100  # [bytes] about one PVD entry
+log = logging.getLogger(__name__)
+
+
+def _growth(ds, arr) -> int:
+    """Bytes that appending ``arr`` (rows along axis 0) to dataset ``ds`` (None: a new one)
+    can add to the file: the new chunks it allocates, each written whole."""
+    per_row = max(1, int(np.prod(arr.shape[1:])))
+    k = 0 if ds is None else ds.shape[0]
+    c = ds.chunks[0] if ds is not None else max(1, min(1024, CHUNK_VALUES // per_row))
+    new_chunks = -(-(k + len(arr)) // c) - -(-k // c)
+    return 8 * (new_chunks * c * per_row + len(arr) * per_row)
+
+
+def _cause(exc) -> str:
+    """One line for a failed write: 'no space left on device' or 'I/O error: ...'."""
+    if no_space(exc):
+        return "no space left on device"
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return f"I/O error: {text}"
 
 
 class ResultWriter(Recorder):
@@ -26,7 +56,7 @@ class ResultWriter(Recorder):
     early leaves a readable file with everything recorded so far.
     """
 
-    def __init__(self, out_dir, case, model, dt, write_frames=True, resume=None):
+    def __init__(self, out_dir, case, model, dt, write_frames=True, resume=None, guard=None):
         """Create ``results.h5`` (or, with ``resume``, reopen it to continue a run).
 
         Parameters
@@ -43,6 +73,8 @@ class ResultWriter(Recorder):
             Continue the run of this checkpoint: ``/history`` and ``/frames`` are cut back
             to the checkpoint's row counts, later VTU files are removed, the collection is
             rewritten from the checkpoint's entries, and new rows are appended.
+        guard : spinweb_fe.io.space.DiskGuard or None
+            Checks the free space before each write (None: no check).
         """
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -51,11 +83,33 @@ class ResultWriter(Recorder):
         self.frames = None
         self.pvd_entries = []
         self.n_rows = 0
+        self.guard = guard
+        self._ds = {}  # open datasets by path
+        self.vtu_bytes = 80 * model.n_nodes + 42 * model.n_elems + 4096  # uncompressed VTU
         if resume is not None:
             self._reopen(case, resume, write_frames)
+            self.flushed = (self.n_rows, len(self.pvd_entries))
             return
         # a checkpoint left by an earlier run in this folder belongs to results we overwrite
         (self.dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+        self._need(8 * (10 * model.n_nodes + 3 * model.n_elems) + 65536, "the mesh", None)
+        self.h5 = None
+        try:
+            self._create(case, dt, write_frames)
+        except (OSError, RuntimeError) as exc:
+            if self.guard is not None:
+                self.guard.release()
+            if self.h5 is not None:
+                try:
+                    self.h5.close()
+                except (OSError, RuntimeError):
+                    pass
+                self.h5 = None
+            raise RunError(f"cannot write to {self.dir}: {_cause(exc)}") from None
+        self.flushed = (0, 0)  # (history rows, frames) on disk
+
+    def _create(self, case, dt, write_frames):
+        model = self.model
         self.h5 = h5py.File(self.dir / "results.h5", "w")
         self.run_id = uuid.uuid4().hex
         write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
@@ -71,6 +125,8 @@ class ResultWriter(Recorder):
             self._new(g, "time", (0,), "s")
             self._new(g, "position", (0, n, 3), "m")
             self._new(g, "tension", (0, m), "N")
+            if model.strength.rupture:
+                self._new(g, "broken", (0, m), "1", "1: the element has broken")
             self.frames = g
         self.h5.flush()
 
@@ -101,7 +157,8 @@ class ResultWriter(Recorder):
     @staticmethod
     def _new(group, name, shape, units, doc=None):
         maxshape = (None,) + tuple(shape[1:])
-        chunks = (max(1, min(1024, 2 ** 20 // max(1, int(np.prod(shape[1:]))))),) + tuple(shape[1:])
+        chunks = (max(1, min(1024, CHUNK_VALUES // max(1, int(np.prod(shape[1:]))))),) \
+            + tuple(shape[1:])
         ds = group.create_dataset(name, shape=shape, maxshape=maxshape, dtype="f8", chunks=chunks)
         ds.attrs["units"] = units
         if doc:
@@ -110,40 +167,124 @@ class ResultWriter(Recorder):
 
     def rows(self, rows: dict):
         """Append rows: name -> (T,) or (T, n_arms) arrays."""
-        for name, arr in rows.items():
-            arr = np.asarray(arr, dtype=np.float64)
-            if name not in self.hist:
-                self._new(self.hist, name, (0,) + arr.shape[1:], *COLUMNS[name])
-            ds = self.hist[name]
-            k = ds.shape[0]
-            ds.resize(k + len(arr), axis=0)
-            ds[k:] = arr
+        rows = {name: np.asarray(arr, dtype=np.float64) for name, arr in rows.items()}
+        t = float(rows["time"][-1]) if len(rows.get("time", ())) else None
+        self._need(sum(_growth(self._ds.get(f"history/{name}"), arr)
+                       for name, arr in rows.items()),
+                   "history rows", t)
+        try:
+            for name, arr in rows.items():
+                if name not in self.hist:
+                    self._new(self.hist, name, (0,) + arr.shape[1:], *COLUMNS[name])
+                ds = self._open(f"history/{name}")
+                k = ds.shape[0]
+                ds.resize(k + len(arr), axis=0)
+                ds[k:] = arr
+            self.h5.flush()
+        except (OSError, RuntimeError) as exc:
+            self._failed(exc, t)
         self.n_rows += len(rows["time"]) if "time" in rows else 0
-        self.h5.flush()
+        self.flushed = (self.n_rows, self.flushed[1])
 
     def frame(self, frame):
-        """One VTU frame, one /frames row, then the PVD rewritten atomically."""
+        """One VTU frame, one /frames row, then one more entry in the PVD."""
         if self.frames is None:
             return
-        t, pos, vel, tension = frame
+        t, pos, vel, tension = frame.time, frame.pos, frame.vel, frame.tension
         mesh = self.model.mesh
         k = len(self.pvd_entries)
         rel = f"frames/web_{k:06d}.vtu"
         rest = mesh.elem_rest_len
         length = mesh.elem_length(pos)
         strain = np.where(rest > 0, (length - rest) / np.where(rest > 0, rest, 1.0), 0.0)
-        write_vtu(self.dir / rel, pos, mesh.elem_nodes,
-                  point_data={"velocity": vel, "displacement": pos - mesh.node_ref,
-                              "node_mass": self.model.nodes.mass},
-                  cell_data={"tension": tension, "strain": strain,
-                             "slack": (tension <= 0).astype(np.int8)})
-        for name, val in (("time", t), ("position", pos), ("tension", tension)):
-            ds = self.frames[name]
-            ds.resize(k + 1, axis=0)
-            ds[k] = val
+        rows = (("time", t), ("position", pos), ("tension", tension))
+        if frame.broken is not None:
+            rows += (("broken", frame.broken),)
+        self._need(self.vtu_bytes + PVD_LINE + sum(
+            _growth(self._open(f"frames/{name}"), np.asarray(val, np.float64)[None])
+            for name, val in rows),
+            "a frame", t)
+        try:  # results.h5 first, then the VTU file, then the collection that lists it
+            for name, val in rows:
+                ds = self._open(f"frames/{name}")
+                ds.resize(k + 1, axis=0)
+                ds[k] = val
+            self.h5.flush()
+            write_vtu(self.dir / rel, pos, mesh.elem_nodes,
+                      point_data={"velocity": vel, "displacement": pos - mesh.node_ref,
+                                  "node_mass": self.model.nodes.mass},
+                      cell_data={"tension": tension, "strain": strain,
+                                 "slack": (tension <= 0).astype(np.int8),
+                                 **strength_cells(self.model, strain, frame.broken)})
+            self.vtu_bytes = int(1.25 * (self.dir / rel).stat().st_size) + 4096
+            pvd = self.dir / "web.pvd"
+            try:
+                if k:
+                    append_pvd(pvd, (t, rel))
+                else:
+                    write_pvd(pvd, [(t, rel)])
+            except (ValueError, FileNotFoundError):  # changed by someone else: rewrite it
+                write_pvd(pvd, [*self.pvd_entries, (t, rel)])
+        except (OSError, RuntimeError) as exc:
+            (self.dir / rel).unlink(missing_ok=True)
+            self._failed(exc, t)
         self.pvd_entries.append((t, rel))
-        write_pvd(self.dir / "web.pvd", self.pvd_entries)
-        self.h5.flush()
+        self.flushed = (self.flushed[0], k + 1)
+
+    def _open(self, path):
+        """The dataset at ``path``, kept open for the whole run: closing a dataset writes its
+        chunk cache, and a write that fails there (a full disk) cannot be caught."""
+        ds = self._ds.get(path)
+        if ds is None:
+            ds = self._ds[path] = self.h5[path]
+        return ds
+
+    def _need(self, nbytes, what, t):
+        if self.guard is not None:
+            self.guard.need(nbytes, what, t)
+
+    def _failed(self, exc, t):
+        """A write failed: free the reserve, cut every dataset back to the last flush,
+        flush that, and stop the run (RunError naming the cause)."""
+        if self.guard is not None:
+            self.guard.release()
+        rows, frames = self.flushed
+        self._flush_quietly()  # what could not be written: written now, or dropped
+        for path, ds in list(self._ds.items()):
+            k = min(rows if path.startswith("history/") else frames, ds.shape[0])
+            try:
+                ds.resize(k, axis=0)
+            except (OSError, RuntimeError):  # its chunk index lost the chunk that failed
+                self._rebuild(path, ds, k)
+        try:
+            self.h5.flush()
+        except (OSError, RuntimeError) as again:
+            log.error("could not flush results.h5 after the failed write: %s",
+                      str(again).splitlines()[0])
+        raise RunError(f"cannot write to {self.dir}: {_cause(exc)} (results.h5 keeps the "
+                       f"{rows} history rows and {frames} frames written before)",
+                       time=t) from None
+
+    def _rebuild(self, path, ds, k):
+        """Replace a dataset that cannot be cut back by a copy of its first ``k`` rows
+        (readers cut every column to the shortest if even that fails)."""
+        try:
+            data, attrs = ds[:k], dict(ds.attrs)
+            group, name = path.rsplit("/", 1)
+            del self.h5[path]
+            new = self._new(self.h5[group], name, data.shape, attrs.pop("units", "1"),
+                            attrs.pop("description", None))
+            new.resize(k, axis=0)
+            new[:] = data
+            self._ds[path] = new
+        except (OSError, RuntimeError, KeyError) as exc:
+            log.debug("could not cut %s back to %d rows: %s", path, k, exc)
+
+    def _flush_quietly(self):
+        try:
+            self.h5.flush()
+        except (OSError, RuntimeError):
+            pass
 
     def set_attrs(self, **attrs):
         for k, v in attrs.items():
@@ -154,5 +295,6 @@ class ResultWriter(Recorder):
     def close(self):
         if self.h5:
             self.h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
+            self._ds = {}
             self.h5.close()
             self.h5 = None

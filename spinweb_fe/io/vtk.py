@@ -1,5 +1,11 @@
-"""ParaView files: VTU line meshes (meshio) and PVD collections, each written atomically
-(temporary file in the same folder, then rename)."""
+"""ParaView files: VTU line meshes (meshio) and PVD collections.
+
+A VTU file is written atomically (temporary file in the same folder, then rename) with the
+permissions the umask gives a new file. A PVD collection is written whole once and then
+grown in place, one ``DataSet`` line per frame (:func:`append_pvd`): the cost of a frame
+does not grow with the number of frames, and the file is a valid collection after every
+call (a failed append puts the previous closing lines back).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +15,18 @@ from pathlib import Path
 
 import meshio
 import numpy as np
+
+PVD_HEAD = ('<?xml version="1.0"?>\n'
+            '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+            "  <Collection>\n")
+PVD_TAIL = "  </Collection>\n</VTKFile>\n"
+
+
+def file_mode() -> int:
+    """The permissions of a new file under the current umask (0o666 & ~umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 def write_vtu(path, points, elements, point_data=None, cell_data=None):
@@ -30,8 +48,9 @@ def write_vtu(path, points, elements, point_data=None, cell_data=None):
                        point_data=dict(point_data or {}),
                        cell_data={k: [np.asarray(v)] for k, v in (cell_data or {}).items()})
     fd, tmp = tempfile.mkstemp(suffix=".vtu", prefix=f".{path.stem}.", dir=path.parent)
-    os.close(fd)
     try:
+        os.fchmod(fd, file_mode())  # mkstemp makes 0600: readable by others as the umask says
+        os.close(fd)
         meshio.write(tmp, mesh, file_format="vtu")
         os.replace(tmp, path)
     except BaseException:
@@ -40,13 +59,49 @@ def write_vtu(path, points, elements, point_data=None, cell_data=None):
         raise
 
 
+def _dataset(t, f) -> str:
+    return f'    <DataSet timestep="{t:.9g}" group="" part="0" file="{f}"/>\n'
+
+
 def write_pvd(path: Path, entries):
     """Write a PVD collection atomically (temp file + rename). entries: [(time, relative file)]."""
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    lines += [f'    <DataSet timestep="{t:.9g}" group="" part="0" file="{f}"/>' for t, f in entries]
-    lines += ["  </Collection>", "</VTKFile>", ""]
+    path = Path(path)
     tmp = path.with_suffix(".pvd.tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(PVD_HEAD + "".join(_dataset(t, f) for t, f in entries) + PVD_TAIL)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def append_pvd(path: Path, entry):
+    """Add one (time, relative file) entry to the PVD collection at ``path`` in place.
+
+    The closing lines are overwritten by the new entry and the closing lines again, in one
+    write; if that fails (a full disk), the closing lines are put back where they were, so
+    the file stays the valid collection it was. A file that does not end as written by
+    :func:`write_pvd` is refused (ValueError).
+    """
+    tail = PVD_TAIL.encode()
+    fd = os.open(path, os.O_RDWR)
+    try:
+        end = os.lseek(fd, 0, os.SEEK_END)
+        pos = end - len(tail)
+        if pos < 0 or os.pread(fd, len(tail), pos) != tail:
+            raise ValueError(f"{path}: not a collection written by spinweb")
+        try:
+            _pwrite_all(fd, (_dataset(*entry) + PVD_TAIL).encode(), pos)
+        except OSError:
+            _pwrite_all(fd, tail, pos)  # overwrites bytes that exist: needs no new space
+            os.ftruncate(fd, end)
+            raise
+    finally:
+        os.close(fd)
+
+
+def _pwrite_all(fd, data: bytes, pos: int):
+    view = memoryview(data)
+    while view:
+        n = os.pwrite(fd, view, pos)
+        view, pos = view[n:], pos + n

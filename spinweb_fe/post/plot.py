@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from spinweb_fe.errors import InputError
-from spinweb_fe.io.h5 import open_h5
+from spinweb_fe.io.folder import check_writable
+from spinweb_fe.io.h5 import history_of, read_result
 
 PANELS = (("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
           ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]"))
@@ -14,11 +15,16 @@ PANELS = (("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
 def load_for_plot(path):
     """(history dict, label) of a result file; the label is its folder (and model)."""
     path = Path(path)
-    with open_h5(path) as h5:
+
+    def read(h5):
         if "history" not in h5:
             raise InputError(path, "history", "no /history group in this file")
-        h = {k: h5["history"][k][()] for k in h5["history"]}
-        label = h5.attrs.get("model", "")
+        return history_of(h5), h5.attrs.get("model", "")
+
+    h, label = read_result(path, read)
+    if not h:
+        raise InputError(path, "history", "no rows yet (the run stopped before its first "
+                         "rows were written)")
     name = path.parent.name or path.stem
     label = f"{name} ({label})" if label else name
     return h, label
@@ -68,10 +74,36 @@ def plot_histories(curves, out, title=None, arm=0, t_max=None):
     return Path(out)
 
 
+def check_figure_path(out) -> Path:
+    """Raise InputError unless ``out`` has a suffix matplotlib writes and a writable folder."""
+    from matplotlib.figure import Figure
+
+    out = Path(out)
+    kinds = sorted(Figure().canvas.get_supported_filetypes())
+    if out.suffix.lower().lstrip(".") not in kinds:
+        raise InputError("-o", "", f"'{out.name}': unknown figure type '{out.suffix}' (valid: "
+                         + ", ".join(f".{k}" for k in kinds) + ")")
+    check_writable(out.parent)
+    return out
+
+
 def four_panel(files, out, labels=None, arm=0, title=None):
-    """The four panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``."""
+    """The four panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``.
+
+    Raises
+    ------
+    InputError
+        An unknown figure suffix, an unwritable folder, an unreadable file, a file without
+        history rows, or an ``arm`` that some file does not have.
+    """
+    check_figure_path(out)
     curves = []
     for i, f in enumerate(files):
         h, label = load_for_plot(f)
+        n_arms = h["arm_length"].shape[1] if "arm_length" in h and h["arm_length"].ndim == 2 \
+            else 1
+        if not 0 <= arm < n_arms:
+            raise InputError("--arm", "", f"arm {arm} does not exist: {f} has {n_arms} "
+                             f"arm{'s' if n_arms > 1 else ''} (0 to {n_arms - 1})")
         curves.append((h, labels[i] if labels else label, None))
     return plot_histories(curves, out, title=title, arm=arm)

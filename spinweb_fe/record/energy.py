@@ -16,9 +16,29 @@ ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, redu
 
 
 def energy_balance(h):
-    """KE + SE - W + D (should stay constant) for a history dict / row table."""
-    return (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
-            + h["damping_dissipation"] + h["contact_dissipation"])
+    """KE + SE - W + D (should stay constant) for a history dict / row table; D counts the
+    rupture dissipation when the history has one (a scene with rupture)."""
+    bal = (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
+           + h["damping_dissipation"] + h["contact_dissipation"])
+    if "rupture_dissipation" in h:
+        bal = bal + h["rupture_dissipation"]
+    return bal
+
+
+def energy_reference(h) -> tuple:
+    """(balance at the first row [J], the initial energy |KE| + |SE| there [J])."""
+    return (float(energy_balance(h)[0]),
+            max(abs(float(h["kinetic_energy"][0])) + abs(float(h["strain_energy"][0])), 1e-30))
+
+
+def balance_error(h, ref=None) -> float:
+    """Largest relative energy-balance error of the rows ``h``: max |B - B_0| over the rows,
+    divided by the energy scale max(initial |KE| + |SE|, max |torque work| of the rows). A
+    run from rest has no initial energy: the torque work sets the scale. ``ref``:
+    :func:`energy_reference` of the run's first row (default: that of ``h``)."""
+    b0, s0 = energy_reference(h) if ref is None else ref
+    scale = max(s0, float(np.max(np.abs(h["torque_work"]))))
+    return float(np.max(np.abs(energy_balance(h) - b0))) / scale
 
 
 class EnergyAudit(Recorder):
@@ -40,12 +60,9 @@ class EnergyAudit(Recorder):
         if not len(rows["time"]):
             return
         t = float(rows["time"][-1])
-        bal = energy_balance(rows)
         if self.ref is None:
-            self.ref = (float(bal[0]), max(abs(rows["kinetic_energy"][0])
-                                           + abs(rows["strain_energy"][0]), 1e-30))
-        scale = max(self.ref[1], float(np.max(np.abs(rows["torque_work"]))))
-        err = float(np.max(np.abs(bal - self.ref[0]))) / scale
+            self.ref = energy_reference(rows)
+        err = balance_error(rows, self.ref)
         if err > self.limit:
             raise RunError(f"energy balance off by {100 * err:.0f} % of the energy scale "
                            "(numerical instability; reduce time.cfl)", time=t)

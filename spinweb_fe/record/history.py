@@ -42,9 +42,21 @@ COLUMNS = {
     "payout_allowed": Column("m", "rate payout: the paid-out length the law allows"),
     "restraint_work": Column("J", "analytical rate payout: work of the restraint that holds the "
                                   "arm back, E - E0 - torque work"),
+    "max_strain": Column("1", "failure strain given: strain of the most utilised element, "
+                              "the largest over the steps since the previous row"),
+    "max_strain_element": Column("1", "failure strain given: index of that element"),
+    "max_strain_arm": Column("1", "failure strain given: arm of that element (-1: none)"),
+    "utilisation": Column("1", "failure strain given: largest strain / failure strain over "
+                               "the elements and the steps since the previous row"),
+    "broken_elements": Column("1", "rupture: number of broken elements"),
+    "rupture_dissipation": Column("J", "rupture: strain energy the broken elements held when "
+                                       "they broke"),
 }
-#: columns that only some scenes or models have (a held coil, a rate payout)
-OPTIONAL = ("payout_front", "payout_speed", "payout_allowed", "restraint_work")
+#: columns that only some scenes or models have (a held coil, a rate payout, a failure
+#: strain, rupture)
+OPTIONAL = ("payout_front", "payout_speed", "payout_allowed", "restraint_work", "max_strain",
+            "max_strain_element", "max_strain_arm", "utilisation", "broken_elements",
+            "rupture_dissipation")
 #: name -> SI unit of every history dataset
 HISTORY_UNITS = {name: c.units for name, c in COLUMNS.items()}
 

@@ -34,12 +34,14 @@ class RunInfo(NamedTuple):
 
 class Frame(NamedTuple):
     """One frame: time t_n [s], positions x_n (n,3) [m], velocities (n,3) [m/s] (the
-    half-step v_{n-1/2}), element tensions (m,) [N]."""
+    half-step v_{n-1/2}), element tensions (m,) [N], and with rupture on the broken
+    elements (m,) bool (None otherwise)."""
 
     time: float
     pos: np.ndarray
     vel: np.ndarray
     tension: np.ndarray
+    broken: np.ndarray | None = None
 
 
 class Recorder:

@@ -1,4 +1,11 @@
-"""A case to a result folder: scene, writers, the event loop, and the run's final status."""
+"""A case to a result folder: checks, scene, estimate, the folder's lock, writers, the event
+loop, and the run's final status (docs/robustness.md).
+
+Everything that can refuse a run (arguments, $SPINWEB_THREADS, the folder's permissions, a
+live run in the folder, the mesh, the estimate against the budget) is checked before the
+folder is touched; set-up stops at once on SIGINT / SIGTERM. Then the folder's lock is
+taken and an earlier result is moved aside until this run's first rows are on disk.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +17,14 @@ import numpy as np
 
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
-from spinweb_fe.io.checkpoint import CHECKPOINT_NAME, Checkpoint, write_checkpoint
+from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
+                                      write_checkpoint)
+from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
 from spinweb_fe.io.results import ResultWriter
+from spinweb_fe.io.space import DiskGuard
 from spinweb_fe.record.recorders import Recorder
-from spinweb_fe.run.loop import Schedule, choose_threads, simulate
+from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
+from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
 from spinweb_fe.run.terminal import Progress, StopSignals
 
 log = logging.getLogger(__name__)
@@ -22,24 +33,43 @@ log = logging.getLogger(__name__)
 class Checkpointer(Recorder):
     """Writes ``DIR/checkpoint.h5`` at the loop's checkpoint events (a recorder)."""
 
-    def __init__(self, path, case, writer, dt, checkpoint_dt, threads):
+    def __init__(self, path, case, writer, dt, checkpoint_dt, threads, guard=None):
         self.path, self.case, self.writer = Path(path), case, writer
         self.dt, self.checkpoint_dt, self.threads = dt, checkpoint_dt, threads
+        self.guard = guard
 
     def checkpoint(self, state, memory):
+        t = float(state.time[0])
         arrays = (state.node_pos, state.node_vel, *state.hub, *state.totals)
         if not all(np.all(np.isfinite(a)) for a in arrays):
-            raise RunError("non-finite state at a checkpoint (numerical instability)",
-                           time=float(state.time[0]))
+            raise RunError("non-finite state at a checkpoint (numerical instability)", time=t)
         w = self.writer
-        write_checkpoint(self.path, Checkpoint(
+        ck = Checkpoint(
             state=state, dt=self.dt, history_rows=w.n_rows, frames=len(w.pvd_entries),
             pvd_entries=list(w.pvd_entries), case_toml=self.case.to_toml(),
             case_source=self.case.source, checkpoint_dt=self.checkpoint_dt, memory=memory,
-            threads=self.threads, run_id=w.run_id))
+            threads=self.threads, run_id=w.run_id)
+        if self.guard is not None:
+            self.guard.need(checkpoint_bytes(ck), "a checkpoint", t)
+        try:
+            write_checkpoint(self.path, ck, on_error=self.guard and self.guard.release)
+        except (OSError, RuntimeError) as exc:
+            raise RunError(f"cannot write {self.path}: {str(exc).splitlines()[0]}",
+                           time=t) from None
 
 
-def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threads=None):
+class _FirstFlush(Recorder):
+    """Drops the folder's earlier result once this run's first rows are on disk."""
+
+    def __init__(self, aside):
+        self.aside = aside
+
+    def rows(self, rows):
+        self.aside.drop()
+
+
+def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threads=None,
+             force=False):
     """Run a validated case and write results.h5 and the ParaView collection into out_dir.
 
     Parameters
@@ -47,7 +77,7 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
     case : spinweb_fe.case.Case
     out_dir : str or Path
     progress : bool
-        Progress bar on a terminal.
+        Progress bar on a terminal (a line a minute otherwise).
     checkpoint_dt : float [s]
         Write ``out_dir/checkpoint.h5`` every ``checkpoint_dt`` of simulated time, at the end
         and when interrupted (0: never).
@@ -56,6 +86,8 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
     threads : int or None
         Threads of the step loop (None: :func:`choose_threads` decides; a restart uses
         the checkpoint's count, which keeps the continuation bit-identical).
+    force : bool
+        Run even if the estimate exceeds the budget (:mod:`spinweb_fe.run.estimate`).
 
     Returns
     -------
@@ -64,59 +96,101 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
     Raises
     ------
     InputError
-        Invalid case or mesh (nothing is written).
+        Invalid case, mesh, environment or folder, or a run beyond the budget (nothing is
+        written).
     RunError
-        Instability or I/O failure; :class:`RunInterrupted` on SIGINT / SIGTERM. The results
-        written so far stay readable and the root attribute ``status`` says why.
+        Another run holds the folder (nothing is changed); instability or I/O failure;
+        :class:`RunInterrupted` on SIGINT / SIGTERM. The results written so far stay
+        readable and the root attribute ``status`` says why.
     """
     out_dir = Path(out_dir)
     step0 = resume.steps if resume is not None else 0
+    if threads is None and resume is not None:
+        threads = resume.threads
+    threads = requested_threads(threads)
+    check_writable(out_dir)
+    if (info := holder(out_dir)) is not None:
+        raise busy(out_dir, info)
+    check_memory(case, force)
     with StopSignals() as stop:
-        mesh, model, control, state, dt = prepare(case)
-        if resume is not None:
-            state = _resumed_state(case, model, dt, resume)
-        if stop():
-            raise RunInterrupted(stop(), float(state.time[0]))  # before anything is written
-        log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), %d steps%s",
-                 case.title or case.source, model.n_nodes, model.n_elems, dt, model.dt_critical,
-                 dt / model.dt_critical, int(math.ceil(case.time.end / dt - 1e-9)),
-                 f", from step {step0}" if resume is not None else "")
-        writer = ResultWriter(out_dir, case, model, dt, write_frames=case.output.frame_dt > 0,
-                              resume=resume)
-        if threads is None and resume is not None:
-            threads = resume.threads
-        threads = choose_threads(model, threads)
-        writer.set_attrs(threads=threads)
-        recorders = [writer, Progress(case.time.end, progress)]
-        if checkpoint_dt > 0:
-            recorders.append(Checkpointer(out_dir / CHECKPOINT_NAME, case, writer, dt,
-                                          checkpoint_dt, threads))
-        schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
-                            checkpoint_dt)
-        status = "failed"
-        try:
-            res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
-                           resume=None if resume is None else resume.memory, threads=threads)
-            status = res.status
-            if res.status != "completed":
-                status = f"{res.status} at t = {float(state.time[0]):.6g} s"
-        except RunError as exc:
-            status = f"failed: {exc}"
-            raise
-        except KeyboardInterrupt:  # a second SIGINT: stopped at once, not at an event
-            status = f"interrupted by SIGINT (twice) at t = {float(state.time[0]):.6g} s"
-            raise
-        except BaseException as exc:
-            status = f"failed: {type(exc).__name__}: {exc}"
-            raise
-        finally:
-            recorders[1].end(status)  # the progress line ends even when the loop raised
-            _finish(writer, steps=int(state.step[0]), status=status)
+        with stop.immediate():  # set-up writes nothing: a signal stops it at once
+            mesh, model, control, state, dt = prepare(case)
+            if resume is not None:
+                state = _resumed_state(case, model, dt, resume)
+            threads = choose_threads(model, threads)
+            rec_every = max(1, round(case.output.history_dt / dt))
+            rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every)
+            est = estimate(case, model, dt, step0, rate, checkpoint_dt > 0)
+            check_budget(case, est, out_dir, force)
+            log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), "
+                     "%d steps%s", case.title or case.source, model.n_nodes, model.n_elems,
+                     dt, model.dt_critical, dt / model.dt_critical, step0 + est.steps,
+                     f", from step {step0}" if resume is not None else "")
+            for line in est.lines(threads):
+                log.info("%s", line)
+        with FolderLock(out_dir):
+            aside = Aside(out_dir)
+            if resume is None:
+                Aside.recover(out_dir)
+                aside.move()
+            else:  # a restart continues the folder's own result: nothing is kept aside
+                aside.done = True
+            try:
+                res = _run(case, out_dir, model, control, state, dt, stop, resume, threads,
+                           progress, checkpoint_dt, aside)
+            finally:
+                if not aside.done:  # stopped before its first rows: the earlier result back
+                    aside.restore()
+                    log.info("%s: the earlier result is kept (this run stopped before its "
+                             "first rows were written)", out_dir)
     if res.status != "completed":
         raise RunInterrupted(res.stop_reason, float(state.time[0]))
     log.info("done: %d steps in %.2f s loop + %.2f s compile (%.3g element-updates/s)",
-             res.steps, res.loop_s, res.compile_s,
+             res.steps, res.loop_s, compile_s + res.compile_s,
              model.n_elems * (res.steps - step0) / max(res.loop_s, 1e-9))
+    return res
+
+
+def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progress,
+         checkpoint_dt, aside):
+    """The writers and the event loop, in a folder this run holds."""
+    guard = DiskGuard(out_dir)
+    try:
+        writer = ResultWriter(out_dir, case, model, dt, write_frames=case.output.frame_dt > 0,
+                              resume=resume, guard=guard)
+    except BaseException:
+        guard.release()
+        raise
+    bar = Progress(case.time.end, progress)
+    recorders = [writer, _FirstFlush(aside), bar]
+    if checkpoint_dt > 0:
+        recorders.append(Checkpointer(out_dir / CHECKPOINT_NAME, case, writer, dt,
+                                      checkpoint_dt, threads, guard))
+    schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
+                        checkpoint_dt)
+    status = "failed"
+    try:
+        writer.set_attrs(threads=threads)
+        res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
+                       resume=None if resume is None else resume.memory, threads=threads)
+        status = res.status
+        if res.status != "completed":
+            status = f"{res.status} at t = {float(state.time[0]):.6g} s"
+        else:
+            aside.drop()
+    except RunError as exc:
+        status = f"failed: {exc}"
+        raise
+    except KeyboardInterrupt:  # a second SIGINT: stopped at once, not at an event
+        status = f"interrupted by SIGINT (twice) at t = {float(state.time[0]):.6g} s"
+        raise
+    except BaseException as exc:
+        status = f"failed: {type(exc).__name__}: {exc}"
+        raise
+    finally:
+        bar.end(status)  # the progress line ends even when the loop raised
+        guard.release()  # room for the last attributes and the close
+        _finish(writer, steps=int(state.step[0]), status=status)
     return res
 
 

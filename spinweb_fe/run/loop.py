@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.errors import RunError
+from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe import step
 from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.model import Model
@@ -21,6 +21,7 @@ from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
 from spinweb_fe.record.history import table_rows
 from spinweb_fe.record.recorders import Frame, RunInfo
+from spinweb_fe.record.strength import StrengthMonitor, strength_columns
 
 ROWS_PER_CHUNK = 256  # history rows between two returns to Python (flush, progress, audit)
 WALL_CHUNK_S = 0.2  # ... and at most about this much wall time (signals, progress)
@@ -60,11 +61,33 @@ def start(model: Model, control: Control, state: State, dt: float):
     step.start_half_step(model.kernel, control.kernel, state, dt)
 
 
-def current_tension(model: Model, pos, vel):
-    """(m,) element tensions [N] at the given positions."""
+def current_tension(model: Model, pos, vel, broken=None):
+    """(m,) element tensions [N] at the given positions (0 in the ``broken`` elements)."""
     t = np.zeros(model.n_elems)
     step.eval_elements(model.elements, pos, vel, np.zeros((model.n_nodes, 3)), t, False)
+    if broken is not None and len(broken):
+        t[broken] = 0.0
     return t
+
+
+def requested_threads(requested=None):
+    """``requested``, else $SPINWEB_THREADS as an integer >= 1, else None.
+
+    Raises
+    ------
+    InputError
+        If $SPINWEB_THREADS is set to anything but an integer >= 1.
+    """
+    text = os.environ.get("SPINWEB_THREADS", "").strip()
+    if requested is not None or not text:
+        return requested
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise InputError("SPINWEB_THREADS", "", f"must be an integer >= 1, got '{text}'")
+    return value
 
 
 def choose_threads(model: Model, requested=None) -> int:
@@ -73,8 +96,7 @@ def choose_threads(model: Model, requested=None) -> int:
     thread count."""
     import numba
 
-    if requested is None and os.environ.get("SPINWEB_THREADS"):
-        requested = int(os.environ["SPINWEB_THREADS"])
+    requested = requested_threads(requested)
     if requested is None:
         requested = 2 if model.n_elems >= PARALLEL_MIN_ELEMENTS else 1
     threads = max(1, min(int(requested), numba.config.NUMBA_NUM_THREADS))
@@ -93,11 +115,13 @@ class _Chunks:
         self.rec = step.Recording(rec_every, tracker.probes,
                                   np.zeros((rows, len(step.REC_COLUMNS))),
                                   np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)),
-                                  np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)))
+                                  np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)),
+                                  np.zeros((rows, 5 if len(model.strength.fail) else 0)))
         self.coiled = len(model.coil.level_nodes) > 0
         self.rate = len(model.coil.payout_t) > 0
         self.row_dt = rec_every * dt
         self.tracker = tracker
+        self.model = model
         self.history = []
 
     def advance(self, state, dt, nsteps):
@@ -109,6 +133,7 @@ class _Chunks:
         rows.update(self.tracker.columns(rows, self.rec.probe_pos[:nrec],
                                          self.rec.probe_vel[:nrec], arms, self.row_dt,
                                          self.rate))
+        rows.update(strength_columns(self.model, self.rec.strength_table[:nrec]))
         self.history.append(rows)
         return rows
 
@@ -159,7 +184,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     ck_every = max(1, round(schedule.checkpoint_dt / dt)) if schedule.checkpoint_dt > 0 else 0
     tracker = ArmTracker(model.mesh, model.hub.radius)
     audit = EnergyAudit(energy_limit)
-    owners = [tracker, audit, *recorders]  # everything with a memory
+    monitor = StrengthMonitor()
+    owners = [tracker, audit, monitor, *recorders]  # everything with a memory
     for owner in owners:
         if resume and owner.name in resume:
             owner.restore(resume[owner.name])
@@ -186,6 +212,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
                            "reduce time.cfl or time.dt)", time=float(state.time[0]))
         if nrec:
             audit.rows(rows)
+            monitor.rows(rows)
 
     frames, loop_s, status, reason = 0, 0.0, "completed", None
     budget = FIRST_CHUNK_STEPS
@@ -200,8 +227,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if n > step0 and (n == n_total or (ck_every and n % ck_every == 0)):
             _checkpoint(recorders, state, memory())
         if frame_every and (n % frame_every == 0 or n == n_total):
+            broken = state.strength.broken.copy() if model.strength.rupture else None
             frame = Frame(n * dt, state.node_pos.copy(), state.node_vel.copy(),
-                          current_tension(model, state.node_pos, state.node_vel))
+                          current_tension(model, state.node_pos, state.node_vel, broken), broken)
             for r in recorders:
                 r.frame(frame)
             frames += 1
@@ -233,3 +261,18 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
 def _checkpoint(recorders, state, memory):
     for r in recorders:
         r.checkpoint(state, memory)
+
+
+def time_steps(model: Model, control: Control, state: State, dt: float, threads: int,
+               rec_every: int, nsteps: int) -> tuple:
+    """(compile or cache-load time [s], wall time [s] of ``nsteps`` steps) of the step loop
+    on a copy of ``state`` (``nsteps`` give at most ROWS_PER_CHUNK rows)."""
+    choose_threads(model, threads)
+    chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), rec_every,
+                     threads, dt)
+    trial = state.copy()
+    t0 = time.perf_counter()
+    chunks.advance(trial, dt, 0)
+    t1 = time.perf_counter()
+    chunks.advance(trial, dt, nsteps)
+    return t1 - t0, time.perf_counter() - t1

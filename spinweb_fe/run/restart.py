@@ -8,6 +8,7 @@ from pathlib import Path
 from spinweb_fe import case as case_mod
 from spinweb_fe.errors import InputError
 from spinweb_fe.io.checkpoint import CHECKPOINT_NAME, check_results_for_restart, read_checkpoint
+from spinweb_fe.io.folder import ASIDE_NAME, Aside, FolderLock, busy, holder
 from spinweb_fe.run.driver import run_case
 
 #: keys that a restart may change (everything else would break bit-identical continuation)
@@ -25,7 +26,8 @@ def _flat(d):
     return out
 
 
-def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=None):
+def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=None,
+                 force=False):
     """Continue the run in ``out_dir`` from ``out_dir/checkpoint.h5``.
 
     ``results.h5`` is cut back to the checkpoint's history rows and frames, and the run
@@ -43,6 +45,8 @@ def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=No
     threads : int or None
         Threads of the continued run (None: the checkpoint's; another count continues
         correctly but not bit-identically).
+    force : bool
+        Run even if the estimate exceeds the budget.
 
     Returns
     -------
@@ -50,6 +54,11 @@ def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=No
         The continued part of the run.
     """
     out_dir = Path(out_dir)
+    if (info := holder(out_dir)) is not None:
+        raise busy(out_dir, info)
+    if (out_dir / ASIDE_NAME).is_dir():  # a run killed before its first rows: undo it
+        with FolderLock(out_dir):
+            Aside.recover(out_dir)
     ck = read_checkpoint(out_dir / CHECKPOINT_NAME)
     raw = case_mod.apply_overrides(tomllib.loads(ck.case_toml), sets)
     case = case_mod.validate(raw, ck.case_source)
@@ -62,4 +71,4 @@ def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=No
     check_results_for_restart(out_dir, ck)
     dt_ck = ck.checkpoint_dt if checkpoint_dt is None else checkpoint_dt
     return run_case(case, out_dir, progress=progress, checkpoint_dt=dt_ck, resume=ck,
-                    threads=threads)
+                    threads=threads, force=force)

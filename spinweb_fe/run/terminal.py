@@ -2,22 +2,30 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
 import threading
 import time
 
+from spinweb_fe.errors import RunInterrupted
 from spinweb_fe.record.recorders import Recorder
+
+SETUP = "during set-up, before anything was written"
+LINE_EVERY_S = 60.0  # [s] wall time between two progress lines when stderr is no terminal
 
 
 class Progress(Recorder):
-    """Simulated time, steps/s and ETA on stderr; silent when not a terminal or under CI."""
+    """Simulated time, steps/s and ETA on stderr: a bar on a terminal (not under CI), else
+    one plain line every LINE_EVERY_S of wall time (a long batch run shows it is alive)."""
 
     def __init__(self, t_end, enabled=True):
         self.t_end = t_end
         self.enabled = enabled and sys.stderr.isatty() and not os.environ.get("CI")
+        self.lines = enabled and not self.enabled
         self.t0 = time.perf_counter()
+        self.last_line = self.t0
         self.last = 0.0
         self.dt = 1.0
         self.mark = (self.t0, 0.0)  # (wall clock, simulated time) of the last update
@@ -27,6 +35,8 @@ class Progress(Recorder):
         self.mark = (time.perf_counter(), info.step0 * info.dt)
 
     def rows(self, rows):
+        if self.lines:
+            self._line(float(rows["time"][-1]))
         if not self.enabled:
             return
         t = float(rows["time"][-1])
@@ -43,6 +53,18 @@ class Progress(Recorder):
                          f"{steps_per_s:9.3g} steps/s  ETA {eta:6.1f} s ")
         sys.stderr.flush()
 
+    def _line(self, t):
+        now = time.perf_counter()
+        if now - self.last_line < LINE_EVERY_S:
+            return
+        self.last_line = now
+        frac = min(t / self.t_end, 1.0)
+        el = now - self.t0
+        eta = el * (1 - frac) / frac if frac > 0 else float("nan")
+        sys.stderr.write(f"t = {t:.6g} / {self.t_end:g} s ({100 * frac:.1f} %), "
+                         f"{el / 60:.1f} min so far, ETA {eta / 60:.1f} min\n")
+        sys.stderr.flush()
+
     def end(self, status):
         if self.enabled:  # once: the driver also ends it when the loop raised
             sys.stderr.write("\n")
@@ -50,7 +72,8 @@ class Progress(Recorder):
 
 
 class StopSignals:
-    """Context manager: SIGINT and SIGTERM set a flag instead of stopping the process.
+    """Context manager: SIGINT and SIGTERM set a flag instead of stopping the process
+    (within :meth:`immediate` they stop it at once).
 
     Calling the object returns the name of the first signal received (or None); the
     solver checks it between two numba chunks. A second SIGINT (Ctrl-C twice, e.g. during
@@ -63,16 +86,31 @@ class StopSignals:
 
     def __init__(self):
         self.signame = None
+        self.at_once = False
         self._previous = {}
 
     def _handler(self, signum, frame):
         if self.signame is None:
             self.signame = signal.Signals(signum).name
+            if self.at_once:
+                raise RunInterrupted(self.signame, None, SETUP)
         elif signum == signal.SIGINT:
             raise KeyboardInterrupt
 
     def __call__(self):
         return self.signame
+
+    @contextlib.contextmanager
+    def immediate(self):
+        """Within this block a signal stops at once (RunInterrupted): for set-up work that
+        writes nothing, so that stopping it halfway leaves nothing half-written."""
+        self.at_once = True
+        try:
+            if self.signame:
+                raise RunInterrupted(self.signame, None, SETUP)
+            yield
+        finally:
+            self.at_once = False
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():

@@ -158,7 +158,8 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
     ------
     InputError
         Unknown keys, a missing base case, empty grid lists, a key both in [grid] and
-        [[runs]], or any run whose case does not validate (named by index and key).
+        [[runs]] (or in ``sets`` and one of them), or any run whose case does not validate
+        (named by index and key).
     """
     from spinweb_fe.case.load import parse_set
 
@@ -182,9 +183,11 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
         if not isinstance(doc.get(name, {}), dict):
             raise InputError(src, name, f"must be a table [{name}]")
     common = {k: _scalar(src, f"set.{k}", v) for k, v in flatten(doc.get("set", {})).items()}
+    given = []  # the --set keys, which the grid and the runs must not set as well
     for arg in sets or ():
         parts, value = parse_set(arg)
         common[".".join(parts)] = value
+        given.append(".".join(parts))
     grid = flatten(doc.get("grid", {}))
     for k, v in grid.items():
         if not isinstance(v, list) or not v:
@@ -199,6 +202,11 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
     for k in run_keys:
         if k in grid:
             raise InputError(src, f"grid.{k}", "also set in [[runs]]: give it in one place")
+    for k in given:
+        if k in grid or k in run_keys:
+            where = f"[grid] ({src.name}: grid.{k})" if k in grid else f"[[runs]] ({src.name})"
+            raise InputError("--set", k, f"is also set by the sweep's {where}, which would "
+                             "override it: give it in one place")
     keys = tuple(list(grid) + run_keys)
     base_raw = _read_toml(base, "base case")
     points = [dict(zip(grid, combo)) for combo in itertools.product(*grid.values())]

@@ -1,0 +1,243 @@
+"""Cable strength: the failure strain of each element, strength margins and rupture.
+
+A scene with a failure strain (``[cable] failure_strain``) runs its element pass through
+:func:`strength_pass` instead of the plain one of :mod:`spinweb_fe.fe.step`: the same
+tension-only law, operation for operation (so the forces and every other history are bit for
+bit those of the same scene without a failure strain), plus
+
+- the peak utilisation u = eps / eps_f over the elements and the steps since the previous
+  history row, with its strain and its element (:attr:`StrengthState.peak`);
+- with rupture on, the break: an intact element whose strain at x_n exceeds eps_f breaks for
+  good at that step. From then on it carries no force (elastic or damper) and its strain is
+  no longer checked; the energy it held is added to :attr:`StrengthState.dissipation` (the
+  ``rupture_dissipation`` of the energy balance): its strain energy EA eps^2 L0 / 2 at x_n,
+  less the half step of work dt N dL/dt / 2 (dL/dt with v_{n-1/2}) that its tension would
+  still have done in the central-difference step. That is what the scheme's discrete energy
+  (KE of the half-step velocities v_{n-1/2} . v_{n+1/2} plus SE at x_n) loses when the
+  element's force is dropped at step n; with the strain energy alone the balance would gain
+  dt N dL/dt / 2 per break, an O(dt) error in a snapping web (measured: 9 % of the
+  dissipated energy in the free web at cfl 0.2, halving with dt).
+
+A scene without a failure strain has empty arrays here and never calls these kernels: its
+element loop is the plain one (no strain check, no broken flag to read).
+
+The break criterion is on the elastic strain (the fibre's), not on the damper's share of the
+tension. Elements are visited in index order and chunks are merged in chunk order, so the
+peak's element is the first of equal utilisations, for every thread count.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+#: columns of the per-row strength table (``Recording.strength_table``): peak utilisation [-],
+#: its strain [-], its element, broken elements so far, rupture dissipation so far [J]
+STRENGTH_COLUMNS = ("utilisation", "max_strain", "max_strain_element", "broken_elements",
+                    "rupture_dissipation")
+
+
+class Strength(NamedTuple):
+    """The strength data of the elements (fixed during a run).
+
+    Attributes
+    ----------
+    fail : (m,) float64 [-]
+        Failure strain eps_f of each element (empty: the scene has no strength check).
+    inv_fail : (m,) float64 [-]
+        1 / eps_f.
+    rupture : bool
+        Elements whose strain exceeds eps_f break for good.
+    """
+
+    fail: np.ndarray
+    inv_fail: np.ndarray
+    rupture: bool
+
+
+class StrengthState(NamedTuple):
+    """What changes of the strength check during a run.
+
+    Attributes
+    ----------
+    broken : (m,) bool
+        The element has broken (empty unless rupture is on).
+    peak : (3,) float64
+        Largest utilisation eps / eps_f since the last history row, its strain [-] and its
+        element (-1 and -1 after a row, before the next element pass).
+    dissipation : (1,) float64 [J]
+        Energy that the broken elements held when they broke, summed (see the module).
+    count : (1,) int64
+        Broken elements.
+    """
+
+    broken: np.ndarray
+    peak: np.ndarray
+    dissipation: np.ndarray
+    count: np.ndarray
+
+
+def no_strength() -> Strength:
+    """Strength data of a scene without a failure strain (no check)."""
+    return Strength(np.zeros(0), np.zeros(0), False)
+
+
+def make_strength(n_elems: int, failure_strain, rupture: bool) -> Strength:
+    """Strength data: one failure strain [-] for every element (None: no check)."""
+    if failure_strain is None:
+        return no_strength()
+    fail = np.full(n_elems, float(failure_strain))
+    return Strength(fail, 1.0 / fail, bool(rupture))
+
+
+def strength_start(strength: Strength) -> StrengthState:
+    """The strength state at the start of a run: nothing broken, no peak yet."""
+    m = strength.fail.shape[0] if strength.rupture else 0
+    return StrengthState(np.zeros(m, np.bool_), np.array([-1.0, 0.0, -1.0]), np.zeros(1),
+                         np.zeros(1, np.int64))
+
+
+@njit(cache=True, error_model="numpy")
+def accumulate_strength(elems, strength, broken, pos, vel, force, lo, hi, record, tension, dt):
+    """The element loop of :func:`spinweb_fe.fe.step.accumulate_elements` (same law, same
+    operations) over elements lo..hi-1, with the strength check and the break (``dt`` [s]:
+    the step, for the energy of a break).
+
+    Returns (strain energy [J] on record steps, max tension [N], damping power [W], peak
+    utilisation, its strain, its element, energy of the elements broken now [J], their
+    number).
+    """
+    elem_nodes = elems.nodes
+    inv_rest = elems.inv_rest
+    ea = elems.ea
+    cdamp = elems.cdamp
+    damped = elems.damped
+    fail = strength.fail
+    inv_fail = strength.inv_fail
+    rupture = strength.rupture
+    se = 0.0
+    tmax = 0.0
+    pdamp = 0.0
+    upeak = -1.0
+    speak = 0.0
+    epeak = -1
+    released = 0.0
+    nbreak = 0
+    write_tension = tension.shape[0] > 0
+    for e in range(lo, hi):
+        if rupture and broken[e]:  # broken for good: no force, no check
+            if write_tension:
+                tension[e] = 0.0
+            continue
+        i = elem_nodes[e, 0]
+        j = elem_nodes[e, 1]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
+        inv = 1.0 / ln
+        strain = max(ln * inv_rest[e] - 1.0, 0.0)  # tension only: N = EA max(eps, 0)
+        u = strain * inv_fail[e]  # utilisation eps / eps_f
+        if u > upeak:
+            upeak = u
+            speak = strain
+            epeak = e
+        n_el = ea[e] * strain
+        if rupture and strain > fail[e]:  # the break at x_n: U - dt N dL/dt / 2 dissipated
+            broken[e] = True
+            nbreak += 1
+            ldot = inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
+                          + dz * (vel[j, 2] - vel[i, 2]))
+            released += 0.5 * n_el * strain / inv_rest[e] - 0.5 * dt * n_el * ldot
+            if write_tension:
+                tension[e] = 0.0
+            continue
+        n_tot = n_el
+        if damped:  # N_d = c dL/dt while taut, total tension never negative
+            ldot = inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
+                          + dz * (vel[j, 2] - vel[i, 2]))
+            taut = 1.0 if strain > 0.0 else 0.0
+            n_tot = max(n_el + taut * cdamp[e] * ldot, 0.0)
+            pdamp += (n_tot - n_el) * ldot
+        if record:
+            se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
+            tmax = max(tmax, n_tot)
+        if write_tension:
+            tension[e] = n_tot
+        c = n_tot * inv
+        fx = c * dx
+        fy = c * dy
+        fz = c * dz
+        force[i, 0] += fx
+        force[i, 1] += fy
+        force[i, 2] += fz
+        force[j, 0] -= fx
+        force[j, 1] -= fy
+        force[j, 2] -= fz
+    return se, tmax, pdamp, upeak, speak, epeak, released, nbreak
+
+
+@njit(cache=True, parallel=True)
+def strength_threads(elems, strength, broken, pos, vel, forces, bounds, record, out, dt):
+    """:func:`accumulate_strength` on several threads: chunk c (elements bounds[c] ..
+    bounds[c+1]-1, each written by its own chunk only) into its own buffer forces[c];
+    out[c] = its eight results."""
+    for c in prange(forces.shape[0]):
+        se, tm, pd, u, s, e, released, nbreak = accumulate_strength(
+            elems, strength, broken, pos, vel, forces[c], bounds[c], bounds[c + 1], record,
+            np.empty(0), dt)
+        out[c, 0] = se
+        out[c, 1] = tm
+        out[c, 2] = pd
+        out[c, 3] = u
+        out[c, 4] = s
+        out[c, 5] = e
+        out[c, 6] = released
+        out[c, 7] = nbreak
+
+
+@njit(cache=True)
+def strength_pass(elems, strength, ss, pos, vel, force, ebounds, sout, record, no_tension, dt):
+    """Element forces of this step with the strength check (one thread, force (1, n, 3), or
+    one buffer per thread); the peak since the last row, the broken count and the rupture
+    dissipation go into ``ss`` (:class:`StrengthState`). Returns (strain energy, max tension,
+    damping power) as the plain element pass does."""
+    if force.shape[0] == 1:
+        se, tmax, pdamp, u, s, e, released, nbreak = accumulate_strength(
+            elems, strength, ss.broken, pos, vel, force[0], 0, elems.nodes.shape[0], record,
+            no_tension, dt)
+        merge_peak(ss, u, s, e, released, nbreak)
+        return se, tmax, pdamp
+    strength_threads(elems, strength, ss.broken, pos, vel, force, ebounds, record, sout, dt)
+    for c in range(sout.shape[0]):  # chunk order: the first of equal peaks wins, as serially
+        merge_peak(ss, sout[c, 3], sout[c, 4], sout[c, 5], sout[c, 6], sout[c, 7])
+    return sout[:, 0].sum(), sout[:, 1].max(), sout[:, 2].sum()
+
+
+@njit(cache=True)
+def merge_peak(ss, u, strain, elem, released, nbreak):
+    """Fold one pass (or chunk) into the strength state: a larger peak replaces the peak;
+    broken elements and their energy are added."""
+    if u > ss.peak[0]:
+        ss.peak[0] = u
+        ss.peak[1] = strain
+        ss.peak[2] = elem
+    ss.dissipation[0] += released
+    ss.count[0] += nbreak
+
+
+@njit(cache=True)
+def record_strength(ss, row):
+    """One row of the strength table (STRENGTH_COLUMNS) at a record step, after its element
+    pass (utilisation 0 and element -1 once every element is broken); the peak starts again
+    for the next row."""
+    row[0] = max(ss.peak[0], 0.0)
+    row[1] = ss.peak[1]
+    row[2] = ss.peak[2]
+    row[3] = ss.count[0]
+    row[4] = ss.dissipation[0]
+    ss.peak[0] = -1.0
+    ss.peak[1] = 0.0
+    ss.peak[2] = -1.0

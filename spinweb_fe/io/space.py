@@ -1,0 +1,89 @@
+"""Free disk space for a run's output: checked before each write, with a small reserve.
+
+HDF5 cannot recover from a write that fails halfway: it drops the chunk it could not
+write and leaves dirty metadata that it tries to write again at close, which crashes the
+process when the disk is still full. So a run never lets a write fail if it can help it:
+:meth:`DiskGuard.need` stops the run (a :class:`DiskFull` run error) *before* a write that
+would not fit, and a small reserve file, deleted when a write fails anyway (another
+program filled the disk), gives the final flush and close the room they need.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+from pathlib import Path
+
+from spinweb_fe.errors import RunError
+
+MARGIN = 256 * 1024        # [bytes] kept free beyond each write (metadata, the final close)
+RESERVE = 512 * 1024       # [bytes] reserve file, freed when a write fails anyway
+RESERVE_NAME = ".reserve"
+
+
+class DiskFull(RunError):
+    """Not enough free space for the next write (raised before writing)."""
+
+
+def no_space(exc) -> bool:
+    """True if ``exc`` (OSError, or h5py's RuntimeError) reports a full disk or quota."""
+    if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT):
+        return True
+    text = str(exc)
+    return "No space left on device" in text or "errno = 28" in text
+
+
+def fmt_bytes(n) -> str:
+    """1536 -> '1.5 KB' (powers of 1024)."""
+    n = float(n)
+    for unit in ("B", "KB", "MB", "GB", "TB"):
+        if abs(n) < 1024 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} PB"
+
+
+def free_bytes(folder) -> int:
+    """Bytes free to this user on the file system of ``folder`` (or its nearest ancestor)."""
+    p = Path(folder)
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+class DiskGuard:
+    """Checks the free space of a result folder before each write; owns its reserve file.
+
+    Parameters
+    ----------
+    folder : Path
+        The result folder (it exists: the run holds its lock).
+    reserve : int [bytes]
+        Size of the reserve file (0: none).
+    """
+
+    def __init__(self, folder, reserve=RESERVE):
+        self.folder = Path(folder)
+        self.path = self.folder / RESERVE_NAME
+        self.size = 0
+        if reserve > 0 and free_bytes(self.folder) > reserve + MARGIN:
+            try:
+                with open(self.path, "wb") as f:
+                    f.write(b"\0" * reserve)  # real blocks, not a sparse file
+                self.size = reserve
+            except OSError:
+                self.path.unlink(missing_ok=True)
+
+    def need(self, nbytes, what="the next output", time=None):
+        """Raise :class:`DiskFull` unless ``nbytes`` (plus MARGIN) fit on the disk."""
+        free = free_bytes(self.folder)
+        if nbytes + MARGIN > free:
+            raise DiskFull(f"no space left on device for {what} ({fmt_bytes(nbytes)} needed, "
+                           f"{fmt_bytes(free)} free on {self.folder})", time=time)
+
+    def release(self):
+        """Delete the reserve file (before the last flush of a failed write, and at the end)."""
+        if self.size:
+            self.path.unlink(missing_ok=True)
+            self.size = 0

@@ -1,0 +1,90 @@
+"""Strength margins of a run: the history columns of the strength check, the run-log warning
+when the utilisation first exceeds 1, and the strength cell data of a frame.
+
+The step loop (:mod:`spinweb_fe.fe.rupture`) records per history row the peak utilisation
+eps / eps_f over the elements and the steps since the previous row, its strain and element,
+the broken elements so far and the energy they held at their breaks. Here they become the
+columns ``utilisation``, ``max_strain``, ``max_strain_element``, ``max_strain_arm`` (every
+scene with ``cable.failure_strain``) and ``broken_elements``, ``rupture_dissipation``
+(with ``cable.rupture = true``).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from spinweb_fe.record.recorders import Recorder
+
+log = logging.getLogger(__name__)
+
+
+def elem_arm(mesh) -> np.ndarray:
+    """(m,) int64 arm of each element: that of its first node, else of its second (-1: the
+    element belongs to no arm, e.g. the web's cross at the hub)."""
+    a = mesh.node_arm[mesh.elem_nodes]
+    return np.where(a[:, 0] >= 0, a[:, 0], a[:, 1]).astype(np.int64)
+
+
+def strength_columns(model, table: np.ndarray) -> dict:
+    """History columns of the strength table rows (T, 5) of a chunk (none without a failure
+    strain)."""
+    if not len(model.strength.fail):
+        return {}
+    elem = table[:, 2].astype(np.int64)
+    arms = elem_arm(model.mesh)
+    cols = {"utilisation": table[:, 0].copy(), "max_strain": table[:, 1].copy(),
+            "max_strain_element": table[:, 2].copy(),
+            "max_strain_arm": np.where(elem >= 0, arms[np.maximum(elem, 0)], -1).astype(float)}
+    if model.strength.rupture:
+        cols["broken_elements"] = table[:, 3].copy()
+        cols["rupture_dissipation"] = table[:, 4].copy()
+    return cols
+
+
+def strength_cells(model, strain: np.ndarray, broken) -> dict:
+    """VTU cell data of a frame: ``utilisation`` max(strain, 0) / eps_f (NaN in a broken
+    element, which has none) and, with rupture on, ``broken`` (1: broken). Empty without a
+    failure strain."""
+    fail = model.strength.fail
+    if not len(fail):
+        return {}
+    util = np.maximum(strain, 0.0) / fail
+    if broken is None:
+        return {"utilisation": util}
+    broken = np.asarray(broken, dtype=bool)
+    return {"utilisation": np.where(broken, np.nan, util), "broken": broken.astype(np.int8)}
+
+
+class StrengthMonitor(Recorder):
+    """Warns once in the run log when the utilisation first exceeds 1 (a recorder; its memory
+    keeps the warning from repeating after a restart)."""
+
+    name = "strength"
+
+    def __init__(self):
+        self.warned = False
+
+    def rows(self, rows):
+        u = rows.get("utilisation")
+        if self.warned or u is None:
+            return
+        over = np.flatnonzero(u > 1.0)
+        if not len(over):
+            return
+        self.warned = True
+        k = over[0]
+        what = ("breaks (it carries nothing from now on)" if "broken_elements" in rows
+                else "would break (cable.rupture = true breaks it)")
+        log.warning("warning: at t = %.6g s element %d (arm %d) is strained to %.4g, %.3g times "
+                    "its failure strain: the cable %s", rows["time"][k],
+                    int(rows["max_strain_element"][k]), int(rows["max_strain_arm"][k]),
+                    rows["max_strain"][k], u[k], what)
+
+    def memory(self):
+        return {"warned": np.array([self.warned])}
+
+    def restore(self, memory):
+        if "warned" in memory:
+            self.warned = bool(np.asarray(memory["warned"]).ravel()[0])
