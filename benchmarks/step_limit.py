@@ -37,9 +37,9 @@ CASES = ["paper_free_arms", "paper_free_web", "paper_two_stage_web", "paper_payo
 CFLS = (0.1, 0.2, 0.3, 0.45, 0.6, 0.75, 0.9)
 
 
-def run(name, cfl, end):
+def run(name, cfl, end, sets=()):
     cs = case_mod.load(ROOT / "cases" / f"{name}.toml",
-                       [f"time.cfl={cfl}", f"time.end={end}", "output.frame_dt=0"])
+                       [f"time.cfl={cfl}", f"time.end={end}", "output.frame_dt=0", *sets])
     mesh, model, control, state, dt = prepare(cs)
     t0 = time.perf_counter()
     try:
@@ -50,9 +50,11 @@ def run(name, cfl, end):
     omega0 = max(abs(cs.initial.omega), 1e-9)
     if control.law.prescribes_rate:
         omega0 = float(np.abs(h["hub_omega"]).max())
+    ke0 = max(float(h["kinetic_energy"][0]), float(np.abs(h["torque_work"]).max()), 1e-30)
     return {"cfl": cfl, "dt": dt, "steps": steps, "loop_s": loop_s, "stopped": stopped,
             "energy_error": float(balance_error(h)), "H": float(deployed_length(mesh).mean()),
-            "omega0": omega0, "history": h}
+            "omega0": omega0, "damping_share": float(h["damping_dissipation"][-1] / ke0),
+            "history": h}
 
 
 def errors(r, ref):
@@ -68,13 +70,19 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="*", default=CASES)
     ap.add_argument("--end", type=float, default=2.0)
+    ap.add_argument("--cfl", type=float, nargs="*", default=list(CFLS[1:]),
+                    help="the runs' cfl values (the reference is always 0.1, undamped)")
+    ap.add_argument("--set", dest="sets", action="append", default=[],
+                    help="case overrides of the runs (not of the reference), e.g. "
+                         "cable.damping_ratio=0.01")
+    ap.add_argument("--out", default="step_limit", help="name of the JSON / PNG files")
     args = ap.parse_args(argv)
-    out = {"machine": machine(), "end_s": args.end, "cases": {}}
+    out = {"machine": machine(), "end_s": args.end, "sets": args.sets, "cases": {}}
     for name in args.cases:
         rows = []
         ref = run(name, CFLS[0], args.end)
-        for cfl in CFLS:
-            r = ref if cfl == CFLS[0] else run(name, cfl, args.end)
+        for cfl in [CFLS[0]] + args.cfl:
+            r = ref if cfl == CFLS[0] else run(name, cfl, args.end, args.sets)
             row = {k: v for k, v in r.items() if k != "history"}
             if "history" in r and "history" in ref:
                 row.update(errors(r, ref))
@@ -83,8 +91,8 @@ def main(argv=None) -> int:
                                     for k, v in row.items()}), flush=True)
         out["cases"][name] = rows
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "step_limit.json").write_text(json.dumps(out, indent=1))
-    plot(out, OUT / "step_limit.png")
+    (OUT / f"{args.out}.json").write_text(json.dumps(out, indent=1))
+    plot(out, OUT / f"{args.out}.png")
     return 0
 
 
