@@ -133,18 +133,41 @@ def test_consistent_conserves_K_and_E(scene):
           f"max|dE|/E0 = {np.abs(de).max():.2e}, switches at "
           f"{[round(s[0], 4) for s in r.switches]}")
     assert not r.stopped and len(r.switches) >= 3       # it uncoils, swings, re-coils
-    assert np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7
+    # README / docs/analytic.md: "a few 1e-9" (measured 4.2e-9 / 1.3e-9 over these 2 s)
+    assert np.abs(dk).max() < 5e-9 and np.abs(de).max() < 2e-9
     L = r.history["arm_length"][:, 0]
     assert L.max() == pytest.approx(50.0) and L.min() > 0
 
 
-def test_printed_drift_web():
-    c = case_mod.loads(case_text("web", end=0.5))
-    r = analytic.solve_case(c, model="printed")
+#: docs/analytic.md, section 2 "Flaws": max |K - K0| and |E - E0| up to 0.1, 0.25, 0.5, 5 s of
+#: the paper's web free at 8 pi (the run of docs/make_analytic_figs.py), scaled as
+#: analytic.drifts scales them over the 5 s run
+DRIFT_MARKS = (0.1, 0.25, 0.5, 5.0)
+DRIFT_TABLE = {("printed", "K"): (0.60, 1.02, 1.23, 1.84),
+               ("printed", "E"): (0.29, 0.30, 0.31, 0.42),
+               ("consistent", "K"): (4e-10, 1e-9, 2e-9, 4e-9),
+               ("consistent", "E"): (1e-9, 1e-9, 1e-9, 2e-9)}
+
+
+@pytest.mark.parametrize("model", ["printed", "consistent"])
+def test_drift_table_of_the_paper_web(model):
+    """The printed model's drifts are regression pins of the code's output at the two digits
+    the docs quote (there is no reference for them to be right against; they were made by
+    docs/make_analytic_figs.py at commit 2ccd0a5 and still hold). The consistent model's
+    balance errors must stay within 1.5x the one-digit values quoted (round-off of DOP853 at
+    1e-10)."""
+    c = case_mod.loads(case_text("web", end=5.0))
+    r = analytic.solve_case(c, model=model)
     dk, de = drifts(r)
-    print(f"\nprinted web, 0.5 s at 8 pi: max|dK|/K0 = {np.abs(dk).max():.3f}, "
-          f"max|dE|/E0 = {np.abs(de).max():.3f}")
-    assert np.abs(dk).max() > 0.01 and np.abs(de).max() > 0.01
+    t = r.history["time"]
+    for name, d in (("K", dk), ("E", de)):
+        got = [np.abs(d[t <= tm + 1e-12]).max() for tm in DRIFT_MARKS]
+        print(f"\n{model} {name}: {['%.3g' % g for g in got]}")
+        for g, quoted in zip(got, DRIFT_TABLE[model, name]):
+            if model == "printed":
+                assert g == pytest.approx(quoted, abs=0.005)
+            else:
+                assert g < 1.5 * quoted
 
 
 def test_point_mass_printed_is_consistent():

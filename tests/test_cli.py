@@ -79,5 +79,10 @@ def test_plot_writes_a_real_picture(tmp_path):
 
 
 def test_python_m_entry_point():
+    from importlib.metadata import version
+
+    from spinweb_fe import __version__
+
     p = subprocess.run([sys.executable, "-m", "spinweb_fe", "--version"], capture_output=True, text=True)
-    assert p.returncode == 0 and "spinweb" in p.stdout
+    assert p.returncode == 0 and p.stdout.strip() == f"spinweb {__version__}"
+    assert __version__ == version("spinweb")  # the installed metadata says the same

@@ -35,13 +35,13 @@ def test_angular_momentum_conserved_to_round_off(friction):
 
 
 def test_energy_balance_and_uncoiling():
-    """Kinetic + strain - torque work + dissipation stays within 1 % of the initial energy
-    over the uncoiling (O(dt^2) truncation plus contact/slack transitions), the arms pay out
-    and the hub despins (trailing wrap)."""
+    """Kinetic + strain - torque work + dissipation stays within 0.1 % of the initial energy
+    over the uncoiling (O(dt^2) truncation plus contact/slack transitions; measured 5.3e-4 at
+    cfl 0.5), the arms pay out and the hub despins (trailing wrap)."""
     model, state, res = coiled_run(0.6)
     h = res.history
     e = energy_balance(h)
-    assert np.max(np.abs(e - e[0])) / e[0] < 1e-2
+    assert np.max(np.abs(e - e[0])) / e[0] < 1e-3
     assert h["hub_omega"][-1] < 0.5 * h["hub_omega"][0]  # the hub despins while paying out
     assert h["arm_length"].max(axis=0).min() > 40.0  # every tether pays out (H = 50 m)
     assert np.all(np.abs(h["arm_angle"][0] + (math.pi / 2 + 50 / 6.3)) < 1e-6)

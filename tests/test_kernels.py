@@ -47,14 +47,20 @@ def test_compressed_and_zero_length_chain_carry_nothing():
         assert np.all(f == 0) and np.all(t == 0) and se == 0
 
 
-def test_rigid_rotation_gives_zero_strain():
+def test_rigid_motion_changes_no_strain():
+    """A random rigid motion (rotation about a random axis, random translation): the
+    unstretched chain stays strain-free, the stretched one keeps its tensions EA eps, and
+    its end forces turn with it (f -> R f)."""
     rng = np.random.default_rng(1)
-    pos, nodes, rest, ea, cd = chain(6, 0.0)
-    pos = pos + rng.normal(size=(1, 3)) * 0
-    a = 0.7
-    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
-    f, t, se, _, _ = forces(pos @ R.T + [3.0, -2.0, 1.0], nodes, rest, ea, cd)
-    assert np.max(np.abs(t)) < 1e-6 and se < 1e-12
+    R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    shift = rng.normal(size=3) * 10
+    for eps in (0.0, 1e-3):
+        pos, nodes, rest, ea, cd = chain(6, eps)
+        f0, t0, se0, _, _ = forces(pos, nodes, rest, ea, cd)
+        f, t, se, _, _ = forces(pos @ R.T + shift, nodes, rest, ea, cd)
+        np.testing.assert_allclose(t, EA * eps, rtol=1e-9, atol=1e-6)
+        assert se == pytest.approx(6 * 0.5 * EA * eps ** 2, rel=1e-9, abs=1e-12)
+        np.testing.assert_allclose(f, f0 @ R.T, atol=1e-9 * EA * max(eps, 1e-6))
 
 
 def test_internal_forces_sum_to_zero_and_have_no_moment():
@@ -94,7 +100,8 @@ def test_contact_impulse_is_radial_and_keeps_node_outside():
     p1 = pos[0] + 0.1 * vel[0]
     assert math.hypot(p1[0], p1[1]) == pytest.approx(1.0, rel=1e-12)
     assert m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) == pytest.approx(lz0, rel=1e-14)
-    assert w == 0.0 and diss > 0
+    # no force this step: the dissipation is the kinetic energy the impulse removed
+    assert w == 0.0 and diss == pytest.approx(0.5 * m[0] * (13.0 - vel[0] @ vel[0]), rel=1e-12)
 
 
 def test_contact_friction_moment_goes_to_the_hub():
@@ -106,7 +113,10 @@ def test_contact_friction_moment_goes_to_the_hub():
     w, diss = step.contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.3, j, w0, 0.0, 0.1)
     L1 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w
     assert L1 == pytest.approx(L0, rel=1e-14)
-    assert w > w0 and diss > 0  # the sliding node drags the hub forward and loses energy
+    assert w > w0  # the sliding node drags the hub forward
+    # and loses exactly the kinetic energy of node and hub that the impulses removed
+    e0 = 0.5 * m[0] * 13.0 + 0.5 * j * w0 ** 2
+    assert diss == pytest.approx(e0 - 0.5 * m[0] * (vel[0] @ vel[0]) - 0.5 * j * w * w, rel=1e-12)
 
 
 @pytest.mark.parametrize("name,values,expect", [

@@ -48,7 +48,12 @@ def test_h5_round_trip(tmp_path, case):
         for name in ("points", "reference_points", "elements", "rest_length", "node_mass",
                      "node_sets/tips", "node_sets/hub_tied"):
             assert "units" in g[name].attrs, name
-        g.visititems(lambda n, o: isinstance(o, h5py.Dataset) and o.attrs["units"])
+        datasets = []
+        g.visititems(lambda n, o: datasets.append(n) if isinstance(o, h5py.Dataset) else None)
+        # every dataset, not only the first: 9 arrays plus one per node and element set
+        assert len(datasets) == 9 + len(m.node_sets) + len(m.elem_sets)
+        missing = [n for n in datasets if not g[n].attrs.get("units")]
+        assert missing == [], missing
 
 
 def test_write_vtu_round_trip(tmp_path):
@@ -120,6 +125,12 @@ def test_main_mesh_bad_input_exit_2(tmp_path, capsys, monkeypatch):
 
 @pytest.mark.parametrize("case", sorted(p.name for p in CASES.glob("*.toml")))
 def test_every_case_passes_check(case, monkeypatch, capsys):
+    """``spinweb check`` prints the resolved case: it loads again as the same case."""
+    import dataclasses
+
+    from spinweb_fe.case import loads
+
     main = _main(monkeypatch)
     assert main(["check", str(CASES / case)]) == 0
-    assert "[" in capsys.readouterr().out
+    printed = loads(capsys.readouterr().out)
+    assert printed == dataclasses.replace(load(CASES / case), source=printed.source)

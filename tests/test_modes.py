@@ -83,17 +83,18 @@ def string_structure(m, E=1000 * E):
 
 # --- closed forms -------------------------------------------------------------------------
 
-@pytest.mark.parametrize("omega, count", [(2.0, 1), (8 * math.pi, 3)])
-def test_stiff_light_tether_is_a_spinning_pendulum(omega, count):
+@pytest.mark.parametrize("omega, count, tol", [(2.0, 1, 5e-6), (8 * math.pi, 3, 7e-4)])
+def test_stiff_light_tether_is_a_spinning_pendulum(omega, count, tol):
     """Massless rod of length L with a tip mass, root on the driven hub at r0: in-plane
-    omega sqrt(r0 / L), out-of-plane omega sqrt(1 + r0 / L) (each tether alike)."""
+    omega sqrt(r0 / L), out-of-plane omega sqrt(1 + r0 / L) (each tether alike). Bounds
+    1.5x docs/modes.md's measured 3e-6 (2 rad/s) and 4.4e-4 (8 pi: the cable stretches)."""
     case = tether_case(omega, count, tip=10.0, E=1000 * E, rho=1e-3)
     res = analyse(case, omega, 2 * count, "driven")
     md = res.modes
     for kind, ref in (("in_plane", math.sqrt(R0 / H)), ("out_of_plane", math.sqrt(1 + R0 / H))):
         got = md.ratio[md.kind == kind]
         assert len(got) == count, md.kind
-        assert np.allclose(got, ref, rtol=1e-3), (kind, got, ref)
+        assert np.allclose(got, ref, rtol=tol), (kind, got, ref)
     assert np.all(md.growth == 0)
     assert np.max(np.abs(md.material_share)) < 1e-3  # pendulum: stiffness all from tension
 
@@ -248,7 +249,7 @@ def test_explicit_solver_rings_at_the_computed_frequencies():
     """A Zylon tether (20 elements, 10 kg tip) spinning at 2 pi rad/s (1.3 % strain), hub
     free in both: perturbed with the computed out-of-plane mode it rings at the computed
     frequency (measured 6e-6 off), and with the lowest in-plane (tether + hub) mode too
-    (8e-5 off)."""
+    (8e-5 off); bounds 1.5x these (README, docs/modes.md)."""
     omega = 2 * math.pi
     case = tether_case(omega, 1, elements=20, tip=10.0)
     res = analyse(case, omega, 4, "free")
@@ -257,7 +258,8 @@ def test_explicit_solver_rings_at_the_computed_frequencies():
         k = next(i for i, (kd, f) in enumerate(zip(res.modes.kind, res.modes.frequency))
                  if kd == kind and f > 1e-3 * omega)
         got = ring(case, res, k, 0.2, 4.0)
-        assert got == pytest.approx(res.modes.frequency[k], rel=1e-3), kind
+        tol = 9e-6 if kind == "out_of_plane" else 1.2e-4
+        assert got == pytest.approx(res.modes.frequency[k], rel=tol), kind
 
 
 # --- bad input and the command line -------------------------------------------------------

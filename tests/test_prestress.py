@@ -132,7 +132,12 @@ def test_trihex_counts_closed_form(j):
     assert _counts(rep) == (2 * v - 3, e, e, 0, 2 * v - 3 - e)
 
 
-# S = 100 m, t = 10 m, corner masses 10 kg, free web (no hub): the docs/prestress.md table
+# S = 100 m, t = 10 m, corner masses 10 kg, free web (no hub): the docs/prestress.md table.
+# dof and bars are counts of the mesh (2V - 3, E: checked below against the mesh), s and m
+# follow from the rank (s = b - r, m = dof - r, checked below); tritri and trihex also have
+# closed forms (the tests above). The rank of the other four, the LP verdict, the load
+# compatibility and the elastic compressed counts are REGRESSION PINS: the code's output at
+# commit 2ccd0a5 (spinweb prestress), as the docs quote it, with no independent derivation.
 TABLE = {  # dof, bars, rank, s, m, prestressable (LP), load compatible, elastic compressed
     "quadquad": ((239, 220, 220, 0, 19), True, True, 0),
     "tritri": ((129, 165, 129, 36, 0), True, True, 30),
@@ -150,6 +155,9 @@ def test_six_configurations(topology):
     rep = analyse(mesh, OMEGA, LINE)
     counts, ok, compatible, n_el = TABLE[topology]
     assert _counts(rep) == counts
+    dof, bars, rank, n_s, n_m = counts
+    assert dof == 2 * mesh.n_nodes - 3 and bars == mesh.n_elems   # counted on the mesh
+    assert (n_s, n_m) == (bars - rank, dof - rank)                # rank-nullity
     assert rep.maxwell == rep.n_selfstress - rep.n_mechanisms
     assert rep.prestressable == ok and rep.load_compatible == compatible
     assert rep.elastic_n_compressed == n_el

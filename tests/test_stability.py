@@ -1,5 +1,6 @@
 """Stability stress tests (issue: performance and stability). Each checks a number against a
-prediction or a conservation law; the long versions are in benchmarks/stability.py."""
+prediction or a conservation law; the longer studies are measurements quoted in
+docs/stability.md (there is no script for them in benchmarks/)."""
 
 import math
 
@@ -91,27 +92,31 @@ def test_stiff_cable_runs_and_conserves():
 
 def test_long_undamped_run_has_bounded_energy_error():
     """Straight spinning tethers starting unstretched bounce radially across the slack/taut
-    kink, without damping, for 4 s (~28 000 steps at the default cfl 0.3): the energy balance
-    error stays below 1e-5 of the initial energy. (Later the radial bounce feeds the in-plane
-    swing, the motion turns violent and the error grows; docs/stability.md has the numbers and
-    the remedy, a small axial damping.)"""
+    kink, without damping, for 4 s (~28 000 steps at cfl 0.3): the energy balance error is
+    that of docs/stability.md's table (zeta 0, cfl 0.3: 1e-7 by 1 s, 3e-7 by 4 s; measured
+    1.1e-7 and 2.7e-7), bounded at 1.5x. (Later the radial bounce feeds the in-plane swing,
+    the motion turns violent and the error grows; the doc has the numbers and the remedy, a
+    small axial damping.)"""
     model, state = spinning_tethers(omega=2 * math.pi)
     dt = choose_dt(model, 0.3, history_dt=1e-2)
     h = simulate(model, FREE, state, dt, Schedule(4.0, 1e-2)).history
     err = np.abs(energy_balance(h) - energy_balance(h)[0]) / h["kinetic_energy"][0]
-    assert err.max() < 1e-5
+    t = h["time"]
+    assert err[t <= 1.0].max() < 1.5e-7 and err.max() < 4.5e-7
 
 
 def test_small_damping_keeps_long_runs_balanced():
     """With 0.1 % of critical axial damping the same run stays balanced (dissipation counted)
-    to 1e-5 over 8 s, where the undamped one drifts to 4e-5 (docs/stability.md)."""
+    over 8 s, where the undamped one drifts to 4e-5: docs/stability.md's row (zeta 0.001,
+    cfl 0.3: 2e-6 by 5 s, 4e-6 by 8 s; measured 1.6e-6, 4.2e-6), bounded at 1.5x."""
     mesh = tethers(4, 50.0, 25, 6.3, 10.0, "straight", "trailing")
     model = build_model(mesh, E, RHO, A, damping_ratio=0.001, hub_radius=6.3, hub_inertia=3969.0)
     state = initial_state(model, 2 * math.pi, "all")
     dt = choose_dt(model, 0.3, history_dt=1e-2)
     h = simulate(model, FREE, state, dt, Schedule(8.0, 1e-2)).history
     err = np.abs(energy_balance(h) - energy_balance(h)[0]) / h["kinetic_energy"][0]
-    assert err.max() < 1e-5
+    t = h["time"]
+    assert err[t <= 5.0].max() < 3e-6 and err.max() < 6e-6
     assert h["damping_dissipation"][-1] > 0
 
 

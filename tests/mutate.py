@@ -1,0 +1,443 @@
+"""Mutation check: do the tests catch small, plausible bugs? (issue #17, docs/testing.md)
+
+Each mutant below is one textual change of one source file (a sign, a factor, a dropped
+term). The script copies the project into a temporary folder (without .git, .venv, out/ and
+caches), applies one mutant at a time to the copy, runs the listed test files there with
+PYTHONPATH pointing at the copy and a private NUMBA_CACHE_DIR, and reports which mutants
+the tests kill and how:
+
+- ``assertion``: a test fails on an assertion (what we want);
+- ``energy stop`` / ``error``: tests only fail through the run's energy audit or an
+  exception (the mutant is caught, but not by a check written for it);
+- ``SURVIVED``: every test passed.
+
+The working tree is never modified. Before the mutants, the unmutated copy runs the union
+of the test files (it must pass: a test failing there is ignored for the mutants, and the
+run warms the numba cache); then the ``canary`` mutant (``damper_tension_negative``, known
+to be killed) must be killed, which proves that the copy, not the installed package, is
+under test. numba's cache of the fe/ kernels is stamped with the content of the whole
+folder (spinweb_fe/fe/cache.py), so a mutant there recompiles them; the report counts the
+cache files each fe/ mutant wrote (0 would mean a stale cache, flagged).
+
+Usage (from the project root; CPU heavy, mutants run one at a time)::
+
+    .venv/bin/python tests/mutate.py              # every mutant (20-45 min on 2 cores)
+    .venv/bin/python tests/mutate.py --only ID,ID # some of them (the baseline still runs)
+    .venv/bin/python tests/mutate.py --list       # the list, nothing run
+
+``make mutate`` runs the first form. The report is printed and written to
+``out/mutation/report.json``. Exit code 0 when every mutant of the issue's table and at
+least 90 % of the others are killed by an assertion, else 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+IGNORE = shutil.ignore_patterns(".git", ".venv", "out", "__pycache__", ".pytest_cache",
+                                "*.nbi", "*.nbc", "*.egg-info", "build", "*.npz", "img")
+
+KERNEL_TESTS = ("tests/test_kernels.py", "tests/test_hub.py", "tests/test_solver_physics.py",
+                "tests/test_mutation_guards.py")
+ANALYTIC_TESTS = ("tests/test_analytic.py", "tests/test_analytic_payout.py",
+                  "tests/test_mutation_guards.py")
+FOLD_TESTS = ("tests/test_fold.py", "tests/test_fold_polygon.py", "tests/test_tethers.py",
+              "tests/test_topologies.py")
+COIL_TESTS = ("tests/test_coil.py", "tests/test_hub.py", "tests/test_mutation_guards.py")
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One textual change: ``old`` (which must occur exactly once in ``path``) -> ``new``."""
+
+    id: str
+    path: str
+    old: str
+    new: str
+    what: str
+    tests: tuple = KERNEL_TESTS
+    issue: bool = False  # one of the seven bugs of issue #17's table
+
+
+MUTANTS = (
+    # ---- the issue's table (the first is the canary)
+    Mutant("damper_tension_negative", "spinweb_fe/fe/step.py",
+           "n_tot = max(n_el + taut * cdamp[e] * ldot, 0.0)",
+           "n_tot = n_el + taut * cdamp[e] * ldot",
+           "damped cables: total tension allowed to go negative", issue=True),
+    Mutant("friction_bound_doubled", "spinweb_fe/fe/contact.py",
+           "p_max = mu * m * dvn", "p_max = 2.0 * mu * m * dvn",
+           "Coulomb friction: impulse bound mu x normal impulse doubled", issue=True),
+    Mutant("torque_work_old_rate", "spinweb_fe/fe/step.py",
+           "incr[0] = torque * dt * 0.5 * (w_new + w_old)", "incr[0] = torque * dt * w_old",
+           "hub torque work with the old hub rate instead of the half-step mean", issue=True),
+    Mutant("root_tension_accel_doubled", "spinweb_fe/analytic/models.py",
+           "return m_f * p.r0 * (omega * omega * c - omega_dot * s) + S * psi * psi",
+           "return m_f * p.r0 * (omega * omega * c - 2.0 * omega_dot * s) + S * psi * psi",
+           "analytical root tension: the hub-acceleration term doubled", ANALYTIC_TESTS,
+           issue=True),
+    Mutant("printed_coiled_initial_inertia", "spinweb_fe/analytic/models.py",
+           "return (p.J_hub + n * r0 * r0 * m_f, 0.0, n * sigma * r0 * S * psi * psi,",
+           "return (p.J0, 0.0, n * sigma * r0 * S * psi * psi,",
+           "printed model, coiled: J_hub + n r0^2 m_f replaced by the initial inertia",
+           ANALYTIC_TESTS, issue=True),
+    Mutant("contact_force_correction_dropped", "spinweb_fe/fe/contact.py",
+           "    diss += 0.5 * dt * (force[i, 0] * (vel[i, 0] - vx0) + force[i, 1] * "
+           "(vel[i, 1] - vy0))\n", "",
+           "contact dissipation without the step-force correction term", issue=True),
+    Mutant("ramp_tied_torque_sign", "spinweb_fe/fe/hub.py",
+           "return j_eff * (w_new - w_old) / dt - tau, w_new",
+           "return j_eff * (w_new - w_old) / dt + tau, w_new",
+           "spin-ramp torque: sign of the tied-node torque flipped", issue=True),
+    # ---- element law and step (fe/step.py)
+    Mutant("compression_carried", "spinweb_fe/fe/step.py",
+           "strain = max(ln * inv_rest[e] - 1.0, 0.0)", "strain = ln * inv_rest[e] - 1.0",
+           "cables carry compression (tension-only removed)"),
+    Mutant("strain_energy_doubled", "spinweb_fe/fe/step.py",
+           "se += 0.5 * n_el * strain / inv_rest[e]", "se += n_el * strain / inv_rest[e]",
+           "strain energy EA eps^2 L0 instead of EA eps^2 L0 / 2"),
+    Mutant("damper_while_slack", "spinweb_fe/fe/step.py",
+           "taut = 1.0 if strain > 0.0 else 0.0", "taut = 1.0",
+           "the damper acts on slack elements too"),
+    Mutant("damping_power_total", "spinweb_fe/fe/step.py",
+           "pdamp += (n_tot - n_el) * ldot", "pdamp += n_tot * ldot",
+           "damping power counts the elastic force too"),
+    Mutant("kinetic_energy_new_half_step", "spinweb_fe/fe/step.py",
+           "row[4] = 0.5 * (sums[0] + sums[1]) + 0.25 * j_eff * (w_old * w_old + w_new * w_new)",
+           "row[4] = sums[1] + 0.5 * j_eff * w_new * w_new",
+           "kinetic energy recorded from v_{n+1/2} only"),
+    Mutant("momentum_new_half_step", "spinweb_fe/fe/step.py",
+           "row[9] = 0.5 * (sums[2] + sums[3]) + j_eff * 0.5 * (w_old + w_new)",
+           "row[9] = sums[3] + j_eff * w_new",
+           "angular momentum recorded from v_{n+1/2} only"),
+    Mutant("start_half_step_sign", "spinweb_fe/fe/step.py",
+           "vel[i, d] -= 0.5 * dt * force[0, i, d] * state.node_inv_mass[i]",
+           "vel[i, d] += 0.5 * dt * force[0, i, d] * state.node_inv_mass[i]",
+           "start v_{-1/2} = v_0 + dt/2 a_0 (first order)"),
+    Mutant("probe_velocity_not_averaged", "spinweb_fe/fe/step.py",
+           "rec.probe_vel[k, p, d] = 0.5 * (vprobe[p, d] + vel[probes[p], d])",
+           "rec.probe_vel[k, p, d] = vel[probes[p], d]",
+           "probe (tip) velocity recorded as v_{n+1/2}, not the mean",
+           KERNEL_TESTS + ("tests/test_arms.py",)),
+    Mutant("hub_angle_old_rate", "spinweb_fe/fe/step.py",
+           "state.hub.angle[0] = theta + dt * w_new",
+           "state.hub.angle[0] = theta + dt * w_old",
+           "hub angle advanced with omega_{n-1/2}"),
+    Mutant("damping_dissipation_halved", "spinweb_fe/fe/step.py",
+           "incr[1] = pdamp * dt", "incr[1] = 0.5 * pdamp * dt",
+           "damping dissipation accumulated at half its value"),
+    Mutant("contact_dissipation_dropped", "spinweb_fe/fe/step.py",
+           "incr[2] = dcontact", "incr[2] = 0.0",
+           "contact dissipation not accumulated"),
+    # ---- hub (fe/hub.py)
+    Mutant("hub_reaction_sign", "spinweb_fe/fe/hub.py",
+           "return value, w_old + dt * (value + tau) / j_eff",
+           "return value, w_old + dt * (value - tau) / j_eff",
+           "the tied nodes' reaction turns the hub the wrong way"),
+    Mutant("moment_sign", "spinweb_fe/fe/hub.py",
+           "part += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]",
+           "part += pos[i, 0] * force[i, 1] + pos[i, 1] * force[i, 0]",
+           "z-moment x f_y + y f_x"),
+    Mutant("ramp_rate_at_step", "spinweb_fe/fe/hub.py",
+           "_, w_new = eval_control(law, t + 0.5 * dt, w_old)",
+           "_, w_new = eval_control(law, t, w_old)",
+           "prescribed rate imposed at t_n instead of the half step"),
+    Mutant("tied_velocity_sign", "spinweb_fe/fe/hub.py",
+           "vel[i, 0] = -omega * y", "vel[i, 0] = omega * y",
+           "tied nodes' velocity not omega e_z x x"),
+    # ---- control laws (fe/control.py)
+    Mutant("feedback_sign", "spinweb_fe/fe/control.py",
+           "return False, p[0] * (1.0 - omega / p[1])",
+           "return False, p[0] * (1.0 + omega / p[1])",
+           "torque feedback M0 (1 + omega/omega0)"),
+    Mutant("ramp_never_ends", "spinweb_fe/fe/control.py",
+           "        return True, p[0]\n    if law.code == 3",
+           "        return True, p[0] * t / p[1]\n    if law.code == 3",
+           "spin ramp keeps accelerating after ramp_time"),
+    Mutant("analytic_ramp_no_acceleration", "spinweb_fe/fe/control.py",
+           "return p[0] * t / p[1], p[0] / p[1]", "return p[0] * t / p[1], 0.0",
+           "the ramp's analytical form loses its acceleration", ANALYTIC_TESTS),
+    # ---- contact (fe/contact.py)
+    Mutant("contact_pushes_out", "spinweb_fe/fe/contact.py",
+           "dvn = min(s / dt, max(-(vx0 * ex + vy0 * ey), 0.0))", "dvn = s / dt",
+           "contact impulse may push a node outwards"),
+    Mutant("friction_reaction_sign", "spinweb_fe/fe/contact.py",
+           "omega -= p * rn / j_eff", "omega += p * rn / j_eff",
+           "friction moment on the hub with the wrong sign"),
+    Mutant("stick_ignores_hub", "spinweb_fe/fe/contact.py",
+           "p_stick = -vrel / (1.0 / m + rn * rn / j_eff)", "p_stick = -vrel * m",
+           "stick impulse ignores the hub's own response"),
+    Mutant("landing_root_sign", "spinweb_fe/fe/contact.py",
+           "s = -pr + np.sqrt(max(disc, 0.0))", "s = -pr - np.sqrt(max(disc, 0.0))",
+           "the other root of the landing equation (no contact impulse)"),
+    # ---- held coil (fe/coil.py)
+    Mutant("held_moment_sign", "spinweb_fe/fe/coil.py",
+           "tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]",
+           "tau += pos[i, 0] * force[i, 1] + pos[i, 1] * force[i, 0]",
+           "moment of the forces on the held coil with the wrong sign", COIL_TESTS),
+    Mutant("release_keeps_inertia", "spinweb_fe/fe/coil.py",
+           "inertia -= nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)",
+           "inertia -= 0.0 * nodes.mass[i]",
+           "a released level stays in the hub's inertia", COIL_TESTS),
+    # ---- analytical model (analytic/models.py, analytic/solve.py)
+    Mutant("consistent_coiled_arm_row", "spinweb_fe/analytic/models.py",
+           "-2.0 * sigma * r0 * S * psi * (omega - 0.5 * psi))",
+           "-2.0 * sigma * r0 * S * psi * (omega - psi))",
+           "consistent coiled arm row: Psi/2 -> Psi", ANALYTIC_TESTS),
+    Mutant("second_moment", "spinweb_fe/analytic/models.py",
+           "I = lin * L2 * L2 / 6.0", "I = lin * L2 * L2 / 4.0",
+           "second moment of the Eq. 7 arm L^4/4 instead of L^4/6", ANALYTIC_TESTS),
+    Mutant("tip_rate_denominator", "spinweb_fe/analytic/models.py",
+           "return h / (r0 * r0 + L * L + 2.0 * r0 * L * c)",
+           "return h / (r0 * r0 + L * L + r0 * L * c)",
+           "tip rate: |r|^2 without the factor 2 of the cross term", ANALYTIC_TESTS),
+    Mutant("straight_tension_eq7", "spinweb_fe/analytic/models.py",
+           "p.m_lin * (r0 + H / 3.0)", "p.m_lin * (r0 + H / 2.0)",
+           "closed-form steady tension: Eq. 7 arm's centre at H/2", ANALYTIC_TESTS),
+    Mutant("rigid_inertia_cross_term", "spinweb_fe/analytic/models.py",
+           "return p.J0 + p.n * (I + 2.0 * p.r0 * S * math.cos(phi))",
+           "return p.J0 + p.n * (I + p.r0 * S * math.cos(phi))",
+           "rigid inertia without the factor 2 of the cross term", ANALYTIC_TESTS),
+    Mutant("momentum_cross_term", "spinweb_fe/analytic/models.py",
+           "K = p.J0 * omega + n * (I * psi + r0 * S * c * (omega + psi))",
+           "K = p.J0 * omega + n * (I * psi + r0 * S * c * psi)",
+           "angular momentum invariant: cross term without omega", ANALYTIC_TESTS),
+    Mutant("printed_pivot_arm_row", "spinweb_fe/analytic/models.py",
+           "m_f * r0 * c, S, -m_f * r0 * s * omega * omega)",
+           "m_f * r0 * c, I, -m_f * r0 * s * omega * omega)",
+           "printed pivoting arm row with I instead of S", ANALYTIC_TESTS),
+    Mutant("work_with_arm_rate", "spinweb_fe/analytic/solve.py",
+           "return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[2], M]",
+           "return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[3], M]",
+           "analytical torque work integrates M Psi", ANALYTIC_TESTS),
+    Mutant("captured_inertia_hub_only", "spinweb_fe/analytic/solve.py",
+           'base = p.J0 if model == "consistent" else',
+           'base = p.J_hub if model == "consistent" else',
+           "consistent captured inertia without the coil", ANALYTIC_TESTS),
+    # ---- fold and coil geometry (meshgen/fold.py)
+    Mutant("coil_direction", "meshgen/fold.py",
+           "ang = np.where(spoke, psi, psi - w * (lk - l0) / r0)",
+           "ang = np.where(spoke, psi, psi + w * (lk - l0) / r0)",
+           "coil wound the other way", FOLD_TESTS),
+    Mutant("spoke_radius", "meshgen/fold.py",
+           "r = np.where(spoke, r0 + (l0 - lk), r0)",
+           "r = np.where(spoke, r0 + 0.5 * (l0 - lk), r0)",
+           "coil lead-in squeezed to half its length", FOLD_TESTS),
+    Mutant("star_run_out", "meshgen/fold.py",
+           "r = r_c + l[out] - l_c", "r = r_c + 0.5 * (l[out] - l_c)",
+           "star-folded arms at half their length", FOLD_TESTS),
+    Mutant("no_lead_in", "meshgen/fold.py",
+           "return 0.0 if c is None else mesh.arm_root_coord - corner_coord(c, mesh.n_arms)",
+           "return 0.0", "frame web coiled without its lead-in", FOLD_TESTS),
+    # ---- energy audit (record/energy.py)
+    Mutant("warn_every_chunk", "spinweb_fe/record/energy.py",
+           "if err > ENERGY_WARN and not self.warned:", "if err > ENERGY_WARN:",
+           "the energy warning repeats", ("tests/test_mutation_guards.py",)),
+    Mutant("balance_contact_sign", "spinweb_fe/record/energy.py",
+           '+ h["damping_dissipation"] + h["contact_dissipation"])',
+           '+ h["damping_dissipation"] - h["contact_dissipation"])',
+           "energy balance subtracts the contact dissipation",
+           ("tests/test_hub.py", "tests/test_mutation_guards.py")),
+)
+
+
+@dataclass
+class Outcome:
+    id: str
+    verdict: str  # assertion | energy stop | error | timeout | SURVIVED | not applicable
+    killed_by: list = field(default_factory=list)
+    tests_run: int = 0
+    seconds: float = 0.0
+    recompiled: int | None = None
+    note: str = ""
+
+
+def make_copy(dest: Path) -> Path:
+    copy = dest / "spinweb"
+    shutil.copytree(ROOT, copy, ignore=IGNORE, symlinks=True)
+    return copy
+
+
+def environment(copy: Path, cache: Path) -> dict:
+    env = dict(os.environ)
+    env.update(PYTHONPATH=str(copy), NUMBA_CACHE_DIR=str(cache), PYTHONDONTWRITEBYTECODE="1",
+               MPLBACKEND="Agg", SPINWEB_THREADS="1")
+    return env
+
+
+def check_imports(copy: Path, env: dict):
+    """The copy's packages, not the working tree's (editable install), must be imported."""
+    code = "import spinweb_fe, meshgen; print(spinweb_fe.__file__); print(meshgen.__file__)"
+    out = subprocess.run([sys.executable, "-c", code], cwd=copy, env=env, text=True,
+                         capture_output=True, check=True).stdout.split()
+    bad = [p for p in out if not Path(p).resolve().is_relative_to(copy.resolve())]
+    if bad:
+        raise SystemExit(f"mutate: the copy is not what Python imports: {bad}")
+
+
+def classify(case) -> str | None:
+    """'assertion', 'energy stop' or 'error' for a failed junit testcase, None if it passed."""
+    bad = case.find("failure")
+    kind = "failure"
+    if bad is None:
+        bad, kind = case.find("error"), "error"
+    if bad is None:
+        return None
+    text = (bad.get("message") or "") + "\n" + (bad.text or "")
+    if "energy balance off by" in text:
+        return "energy stop"
+    if kind == "failure" and ("AssertionError" in text or (bad.get("message") or "")
+                              .lstrip().startswith("assert")):
+        return "assertion"
+    return "error"
+
+
+def run_tests(copy: Path, env: dict, tests, xml: Path, timeout: float):
+    """Run pytest on ``tests`` in the copy; {test id: classification or None}, or None on
+    a timeout."""
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "not slow",
+           f"--junitxml={xml}", *tests]
+    try:
+        subprocess.run(cmd, cwd=copy, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return None
+    if not xml.exists():
+        return {}
+    out = {}
+    for case in ET.parse(xml).getroot().iter("testcase"):
+        if case.find("skipped") is not None:
+            continue
+        name = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
+        out[name] = classify(case)
+    return out
+
+
+def cache_files_since(cache: Path, t0: float) -> int:
+    return sum(1 for p in cache.rglob("*") if p.suffix in (".nbi", ".nbc")
+               and p.stat().st_mtime >= t0)
+
+
+def run_mutant(m: Mutant, copy: Path, work: Path, base_cache: Path, baseline_failed: set,
+               timeout: float) -> Outcome:
+    src = copy / m.path
+    text = src.read_text()
+    if text.count(m.old) != 1:
+        return Outcome(m.id, "not applicable",
+                       note=f"snippet found {text.count(m.old)} times in {m.path}")
+    cache = work / f"cache_{m.id}"
+    shutil.copytree(base_cache, cache)
+    stat = src.stat()
+    t0 = time.time()
+    src.write_text(text.replace(m.old, m.new))
+    try:
+        results = run_tests(copy, environment(copy, cache), m.tests, work / f"{m.id}.xml",
+                            timeout)
+    finally:
+        src.write_text(text)
+        os.utime(src, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    seconds = time.time() - t0
+    recompiled = cache_files_since(cache, t0) if m.path.startswith("spinweb_fe/fe/") else None
+    shutil.rmtree(cache, ignore_errors=True)
+    if results is None:
+        return Outcome(m.id, "timeout", seconds=seconds, recompiled=recompiled)
+    failed = {k: v for k, v in results.items() if v and k not in baseline_failed}
+    out = Outcome(m.id, "SURVIVED", tests_run=len(results), seconds=seconds,
+                  recompiled=recompiled)
+    for kind in ("assertion", "energy stop", "error"):
+        hit = sorted(k for k, v in failed.items() if v == kind)
+        if hit:
+            out.verdict, out.killed_by = kind, hit
+            break
+    if out.verdict == "SURVIVED" and recompiled == 0:
+        out.note = "no cache file written: stale numba cache?"
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--only", help="comma-separated mutant ids")
+    ap.add_argument("--list", action="store_true", help="list the mutants and exit")
+    ap.add_argument("--timeout", type=float, default=900.0, help="per mutant [s]")
+    ap.add_argument("--report", default=str(ROOT / "out" / "mutation" / "report.json"))
+    args = ap.parse_args(argv)
+    ids = [m.id for m in MUTANTS]
+    assert len(set(ids)) == len(ids), "duplicate mutant ids"
+    chosen = list(MUTANTS)
+    if args.only:
+        want = args.only.split(",")
+        unknown = sorted(set(want) - set(ids))
+        if unknown:
+            raise SystemExit(f"mutate: unknown mutant(s) {unknown} (valid: {', '.join(ids)})")
+        chosen = [m for m in MUTANTS if m.id in want]
+    if args.list:
+        for m in MUTANTS:
+            print(f"{m.id:34s} {'issue' if m.issue else 'own':5s} {m.path}: {m.what}")
+        return 0
+    canary = MUTANTS[0]
+    if canary not in chosen:
+        chosen.insert(0, canary)
+    with tempfile.TemporaryDirectory(prefix="spinweb-mutate-") as tmp:
+        work = Path(tmp)
+        copy = make_copy(work)
+        base_cache = work / "cache_base"
+        env = environment(copy, base_cache)
+        check_imports(copy, env)
+        tests = sorted({t for m in chosen for t in m.tests})
+        print(f"baseline: {len(tests)} test files on the unmutated copy in {copy} ...",
+              flush=True)
+        t0 = time.time()
+        base = run_tests(copy, env, tests, work / "baseline.xml", args.timeout * 2)
+        if base is None:
+            raise SystemExit("mutate: the baseline run timed out")
+        baseline_failed = {k for k, v in base.items() if v}
+        print(f"baseline: {len(base)} tests, {len(baseline_failed)} failing (ignored below)"
+              f", {time.time() - t0:.0f} s", flush=True)
+        for k in sorted(baseline_failed):
+            print(f"  baseline failure: {k}")
+        outcomes = []
+        for m in chosen:
+            o = run_mutant(m, copy, work, base_cache, baseline_failed, args.timeout)
+            outcomes.append(o)
+            first = o.killed_by[0] if o.killed_by else ""
+            extra = f" (+{len(o.killed_by) - 1})" if len(o.killed_by) > 1 else ""
+            rc = "" if o.recompiled is None else f", recompiled {o.recompiled}"
+            print(f"{m.id:34s} {o.verdict:14s} {o.seconds:5.0f} s{rc}  {first}{extra} "
+                  f"{o.note}", flush=True)
+            if m is canary and o.verdict != "assertion":
+                raise SystemExit("mutate: the canary survived: the copy is not under test "
+                                 "(or a stale cache was used)")
+    by_id = {m.id: m for m in MUTANTS}
+    issue = [o for o in outcomes if by_id[o.id].issue]
+    own = [o for o in outcomes if not by_id[o.id].issue and o.verdict != "not applicable"]
+    ok_issue = sum(o.verdict == "assertion" for o in issue)
+    ok_own = sum(o.verdict == "assertion" for o in own)
+    rate = ok_own / len(own) if own else 1.0
+    print(f"\nissue's mutants killed by an assertion: {ok_issue}/{len(issue)}")
+    print(f"own mutants killed by an assertion: {ok_own}/{len(own)} ({100 * rate:.0f} %)")
+    for o in outcomes:
+        if o.verdict != "assertion":
+            print(f"  {o.id}: {o.verdict} {o.note}")
+    report = Path(args.report)
+    report.parent.mkdir(parents=True, exist_ok=True)
+    report.write_text(json.dumps({"mutants": [asdict(m) | asdict(o) for m, o in
+                                              zip([by_id[o.id] for o in outcomes], outcomes)],
+                                  "issue_killed": [ok_issue, len(issue)],
+                                  "own_killed": [ok_own, len(own)]}, indent=1))
+    print(f"report: {report}")
+    full = len(issue) == sum(m.issue for m in MUTANTS)
+    return 0 if ok_issue == len(issue) and rate >= 0.9 and (full or args.only) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
