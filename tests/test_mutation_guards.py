@@ -461,6 +461,28 @@ def test_a_run_from_rest_is_audited_against_its_torque_work():
     assert np.array_equal(energy_balance(h), [0.0, 0.0, 2.0])
 
 
+def test_the_audit_scale_is_the_torque_work_of_the_whole_run():
+    """A run from rest spun up by 1e6 J of torque work, then braked back to zero work: the
+    later chunks are still measured against 1e6 J (a 2e4 J balance error is 2 %, a warning,
+    not a stop), and the scale and the warning survive a restart (memory / restore)."""
+    def chunk(t, ke, w):
+        z = np.zeros(len(t))
+        return {"time": np.array(t), "kinetic_energy": np.array(ke), "strain_energy": z,
+                "torque_work": np.array(w), "damping_dissipation": z,
+                "contact_dissipation": z}
+
+    audit = EnergyAudit()
+    audit.rows(chunk([0.0, 1.0], [0.0, 1e6], [0.0, 1e6]))
+    audit.rows(chunk([2.0, 3.0], [5e5, 2e4], [5e5, 0.0]))  # 2 % of the run's scale: warns
+    assert audit.warned and audit.work_seen == 1e6
+    again = EnergyAudit()
+    again.restore(audit.memory())
+    assert again.warned and again.work_seen == 1e6 and again.ref == audit.ref
+    again.rows(chunk([4.0], [4e4], [0.0]))  # 4 %: no stop, no second warning
+    with pytest.raises(RunError):
+        again.rows(chunk([5.0], [6e5], [0.0]))  # 60 % of 1e6 J
+
+
 # ---------------------------------------------------------------- input limits and files
 
 TETHER_CASE = ("[tethers]\ncount = 4\nlength = 50.0\nelements = 10\n[tip_mass]\nmass = 10.0\n"
