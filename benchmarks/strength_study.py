@@ -218,7 +218,8 @@ def stage_steady(args, results):
     strains): the utilisation at 8 pi rad/s, where it peaks, and the rate at which it is 1."""
     from scipy.optimize import brentq
 
-    from spinweb_fe.linear.steady import deployed, solve_steady
+    from spinweb_fe.case.scene import deployed
+    from spinweb_fe.linear.steady import solve_steady
 
     res = results.setdefault("steady", {})
     for name in ("paper_free_web", "paper_free_arms"):

@@ -11,8 +11,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("meshgen", "spinweb_fe")
 #: stages from the bottom up: a module may import only its own stage and the ones below
 LAYERS = ("meshgen", "spinweb_fe.errors", "spinweb_fe.fe", "spinweb_fe.record", "spinweb_fe.io",
-          "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic", "spinweb_fe.linear",
-          "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli", "spinweb_fe.__main__")
+          "spinweb_fe.linear", "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic",
+          "spinweb_fe.linear.study", "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli",
+          "spinweb_fe.__main__")
 MAX_LINES = 500
 
 

@@ -42,7 +42,7 @@ def test_every_command_is_documented_and_exists():
 
 
 def test_every_history_dataset_is_documented_with_its_units():
-    rows = re.findall(r"^\| `(\w+)` \| \((T,?n?,?3?)\) \| ([^|]+) \|", section("`results.h5`"),
+    rows = re.findall(r"^\| `(\w+)` \| \((T,?n?,?[34]?)\) \| ([^|]+) \|", section("`results.h5`"),
                       re.M)
     assert {name: units.strip() for name, _, units in rows} == \
         {name: c.units for name, c in COLUMNS.items()}

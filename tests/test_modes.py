@@ -13,11 +13,11 @@ from closed_forms import quadquad_line_tensions
 from meshgen.mesh import lumped_mass
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
-from spinweb_fe.case.scene import prepare
+from spinweb_fe.case.scene import deployed, prepare
 from spinweb_fe.cli import main
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.linear.modes import InPlane, compute_modes, rigid_rotation
-from spinweb_fe.linear.steady import (Structure, check_mechanism, deployed, hub_forces,
+from spinweb_fe.linear.steady import (Structure, check_mechanism, hub_forces,
                                       solve_steady)
 from spinweb_fe.linear.study import analyse, sweep
 from spinweb_fe.record.recorders import Recorder

@@ -12,6 +12,7 @@ import pytest
 from spinweb_fe.io import checkpoint as ckmod
 from spinweb_fe.cli import main
 from spinweb_fe.fe.coil import CoilState
+from spinweb_fe.fe.rigid import RigidState
 from spinweb_fe.fe.rupture import StrengthState
 from spinweb_fe.fe.state import HubState, State, Totals, to_arrays
 
@@ -109,9 +110,11 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     st = State(pos, rng.standard_normal((7, 3)), rng.random(7), rng.random(7),
                HubState(one(), one(), one()),
                CoilState(np.array([3, 0], np.int64), np.array([True, False])),
-               Totals(one(), one(), one()), np.array([12345], np.int64), one(),
+               Totals(one(), one(), one(), one()), np.array([12345], np.int64), one(),
                StrengthState(np.array([True, False, True]), rng.standard_normal(3), one(),
-                             np.array([2], np.int64)))
+                             np.array([2], np.int64)),
+               RigidState(*(rng.standard_normal(s) for s in (3, 3, 4, 3, 1, 3, (3, 3),
+                                                             (3, 3), 3))))
     entries = [(0.0, "frames/web_000000.vtu"), (0.05, "frames/web_000001.vtu")]
     memory = {"arms": {"prev_phi": np.array([np.nan, 1.0]),
                        "prev_wound": np.array([True, False])},

@@ -20,6 +20,7 @@ from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, 
                                     SCHEMA, TOP_KEYS, Field)
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.control import LAWS
+from spinweb_fe.fe.tidal import R_EARTH
 
 def _table_class(name, fields):
     cls = dataclasses.make_dataclass(
@@ -53,6 +54,8 @@ class Case:
     time: Any
     output: Any
     source: str = "<string>"
+    perturbation: Any = None
+    environment: Any = None
 
     @property
     def scene(self) -> str:
@@ -129,6 +132,8 @@ def _coerce(src, dotted, field: Field, value):
             raise InputError(src, dotted, f"expected true or false, got {value!r}")
     elif kind == "table":
         return _table(src, dotted, value)
+    elif kind == "vector":
+        return _vector(src, dotted, field, value)
     chk = field.check
     if isinstance(chk, tuple):
         if value not in chk:
@@ -142,6 +147,15 @@ def _coerce(src, dotted, field: Field, value):
     elif chk == "nonzero" and value == 0:
         raise InputError(src, dotted, "must not be zero")
     return value
+
+
+def _vector(src, dotted, field, value):
+    """A list of three finite numbers, each passing the field's check -> tuple of floats."""
+    if not (isinstance(value, list) and len(value) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)):
+        raise InputError(src, dotted, f"expected a list of three numbers, got {value!r}")
+    one = Field("float", check=field.check, unit=field.unit)
+    return tuple(_coerce(src, dotted, one, x) for x in value)
 
 
 def _table(src, dotted, value):
@@ -207,15 +221,13 @@ def _cross_check(src, scene, raw, t):
         raise InputError(src, "fold.pattern",
                          f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
     _check_stowage(src, scene, raw, t)
+    _check_free_hub(src, t)
+    _check_perturbation(src, scene, t)
+    _check_environment(src, t)
     if t["cable"]["rupture"] and t["cable"]["failure_strain"] is None:
         raise InputError(src, "cable.rupture", "needs cable.failure_strain (the strain at "
                          "which an element breaks)")
     hub = t["hub"]
-    if hub["inertia"] is None:
-        hub["inertia"] = hub["mass"] * hub["radius"] * hub["radius"]
-        if not 0 < hub["inertia"] < math.inf:
-            raise InputError(src, "hub.inertia", f"the default mass * radius^2 = "
-                             f"{hub['inertia']:g} kg m^2 is not a usable number; give it")
     law = t["control"]["law"]
     for key in LAWS[law].keys:
         if t["control"][key.name] is None:
@@ -295,6 +307,81 @@ def _check_stowage(src, scene, raw, t):
     if st["bundle"] == "until_length" and not st["bundle_release"] <= 1.0:
         raise InputError(src, "stowage.bundle_release", "a fraction of the arm length in "
                          f"(0, 1], got {st['bundle_release']:g}")
+
+
+def _check_free_hub(src, t):
+    """[hub]: the inertia triple (positive, triangle inequality), what a free hub needs."""
+    hub = t["hub"]
+    given = hub["principal_inertia"]
+    if given is not None:
+        if hub["inertia"] is not None and abs(hub["inertia"] - given[2]) > 1e-12 * given[2]:
+            raise InputError(src, "hub.inertia", "give either hub.inertia or "
+                             "hub.principal_inertia (whose third value it is), not both")
+        if hub["inertia_transverse"] is not None:
+            raise InputError(src, "hub.inertia_transverse", "give either "
+                             "hub.inertia_transverse or hub.principal_inertia, not both")
+        hub["inertia"] = given[2]
+    if hub["inertia"] is None:
+        hub["inertia"] = hub["mass"] * hub["radius"] * hub["radius"]
+        if not 0 < hub["inertia"] < math.inf:
+            raise InputError(src, "hub.inertia", f"the default mass * radius^2 = "
+                             f"{hub['inertia']:g} kg m^2 is not a usable number; give it")
+    if given is None and (hub["motion"] == "free" or hub["inertia_transverse"] is not None):
+        if hub["inertia_transverse"] is None:
+            hub["inertia_transverse"] = 0.5 * hub["inertia"]
+        triple = (hub["inertia_transverse"], hub["inertia_transverse"], hub["inertia"])
+        key = "hub.inertia_transverse"
+    else:
+        triple, key = given, "hub.principal_inertia"
+    if triple is not None:
+        a, b, c = sorted(triple)
+        if a + b < c * (1 - 1e-12):
+            raise InputError(src, key, f"{list(triple)} kg m^2 breaks the triangle inequality "
+                             f"(each moment at most the sum of the other two): no rigid body "
+                             "has these")
+    if hub["motion"] == "free" and hub["friction"] > 0:
+        raise InputError(src, "hub.friction", "contact friction is not modelled for a free "
+                         "hub (hub.motion = 'free'): set it to 0")
+
+
+def _check_perturbation(src, scene, t):
+    """[perturbation]: amplitudes within the web, what each key needs."""
+    p = t["perturbation"]
+    size = t["web"]["side"] if scene == "web" else t["tethers"]["length"]
+    if p["z_amplitude"] > size:
+        raise InputError(src, "perturbation.z_amplitude", f"{p['z_amplitude']:g} m is larger "
+                         f"than the web ({size:g} m)")
+    if p["hub_tilt_rate"] != 0 and t["hub"]["motion"] != "free":
+        raise InputError(src, "perturbation.hub_tilt_rate", "needs hub.motion = 'free' (a "
+                         "hub on a fixed axis cannot nutate)")
+    if p["delay"] > 0 and t["stowage"]["coil"] != "held":
+        raise InputError(src, "perturbation.delay", "holds an arm's coil on the hub: needs a "
+                         "held coil (stowage.coil = 'held', a coiled scene)")
+
+
+def _check_environment(src, t):
+    """[environment]: an orbit outside the Earth for the gravity gradient, a free hub."""
+    env = t["environment"]
+    orbit = [k for k in ("orbit_radius", "altitude") if env[k] is not None]
+    if not env["gravity_gradient"]:
+        extra = orbit + (["orbit_tilt"] if env["orbit_tilt"] != 0 else [])
+        if extra:
+            raise InputError(src, f"environment.{extra[0]}", "used only with "
+                             "environment.gravity_gradient = true")
+        return
+    if not orbit:
+        raise InputError(src, "environment.orbit_radius", "required by "
+                         "environment.gravity_gradient = true (or give environment.altitude)")
+    if len(orbit) == 2:
+        raise InputError(src, "environment.altitude", "give either environment.orbit_radius "
+                         "or environment.altitude, not both")
+    radius = env["orbit_radius"] if env["orbit_radius"] is not None else R_EARTH + env["altitude"]
+    if not radius > R_EARTH:
+        raise InputError(src, f"environment.{orbit[0]}", f"the orbit radius {radius:g} m is "
+                         f"inside the Earth (mean radius {R_EARTH:g} m)")
+    if t["hub"]["motion"] != "free":
+        raise InputError(src, "environment.gravity_gradient", "needs hub.motion = 'free' (the "
+                         "tidal field acts on the hub, which a fixed axis would hold)")
 
 
 def _check_sizes(src, scene, t):

@@ -17,14 +17,19 @@ from meshgen.build import web_mesh
 from meshgen.checks import MeshValueError, check_mesh
 from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
-from spinweb_fe.errors import InputError
+from spinweb_fe.case.perturb import mode_field, perturbed, random_field
+from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe.coil import BUNDLES, build_coil, rate_table
 from spinweb_fe.fe.control import Control, make_control
-from spinweb_fe.fe.model import Model, build_model, choose_dt
+from spinweb_fe.fe.model import Model, Nodes, build_model, choose_dt
+from spinweb_fe.fe.rigid import make_body
 from spinweb_fe.fe.rupture import make_strength
 from spinweb_fe.fe.state import State, initial_state
+from spinweb_fe.fe.tidal import R_EARTH, orbit
+from spinweb_fe.linear.steady import structure_from_model
 
 MAX_STEPS = 1e10  # more steps than this is a units slip (days of run time), not a case
+NO_SPIN = "a cable net without spin has no out-of-plane stiffness (the tension vanishes)"
 
 # generator parameter -> case key, per scene
 _WEB_KEYS = {"side": "web.side", "mesh_width": "web.mesh_width",
@@ -85,18 +90,29 @@ def eq7_line_density(mesh: Mesh, arm_mass: float) -> np.ndarray:
 
 
 def model_from_case(case, mesh: Mesh) -> Model:
-    """Model for a validated case and its mesh (with its stowed coil and its cable strength,
-    if any)."""
-    cab, hub = case.cable, case.hub
+    """Model for a validated case and its mesh (with its stowed coil, its cable strength, a
+    free hub, the gravity gradient and an arm's scaled tip mass, if any)."""
+    cab, hub, pert = case.cable, case.hub, case.perturbation
     arm_mass = case.tethers.arm_mass if case.scene == "tethers" else None
     model = build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
                         hub_radius=hub.radius, hub_inertia=hub.inertia,
                         hub_friction=hub.friction,
                         line_density=None if arm_mass is None else eq7_line_density(mesh,
                                                                                     arm_mass))
+    _check_arm(case, mesh)
+    if pert.tip_mass_scale != 1.0:
+        model = _scale_tip(model, mesh, pert.arm, pert.tip_mass_scale)
     if cab.failure_strain is not None:
         model = dataclasses.replace(model, strength=make_strength(
             mesh.n_elems, cab.failure_strain, cab.rupture))
+    if hub.motion == "free":
+        principal = hub.principal_inertia or (hub.inertia_transverse, hub.inertia_transverse,
+                                              hub.inertia)
+        model = dataclasses.replace(model, body=make_body(hub.mass, principal))
+    env = case.environment
+    if env.gravity_gradient:
+        radius = env.orbit_radius if env.orbit_radius is not None else R_EARTH + env.altitude
+        model = dataclasses.replace(model, env=orbit(radius, env.orbit_tilt))
     st = case.stowage
     if st.coil is None or (st.coil == "loose" and st.bundle == "none"):
         return model  # nothing to hold or bundle: the kernels skip the coil
@@ -104,9 +120,74 @@ def model_from_case(case, mesh: Mesh) -> Model:
     if st.payout == "rate":
         payout = (rate_table(st.payout_rate) if st.payout_rate is not None
                   else tuple(np.array(c) for c in zip(*st.payout_length)))
+    hold = None
+    if pert.delay > 0:
+        hold = np.zeros(mesh.n_arms)
+        hold[pert.arm] = pert.delay
     coil = build_coil(mesh, model.elements.nodes, model.nodes.mass, payout,
-                      (BUNDLES[st.bundle].code, st.bundle_release or 0.0))
+                      (BUNDLES[st.bundle].code, st.bundle_release or 0.0), hold)
     return dataclasses.replace(model, coil=coil)
+
+
+def _check_arm(case, mesh: Mesh):
+    """[perturbation] arm names an arm of the scene (when a key uses it)."""
+    p = case.perturbation
+    if (p.tip_mass_scale != 1.0 or p.delay > 0) and not p.arm < mesh.n_arms:
+        raise InputError(case.source, "perturbation.arm", f"arm {p.arm} does not exist: the "
+                         f"scene has {mesh.n_arms} arms (0 to {mesh.n_arms - 1})")
+
+
+def _scale_tip(model: Model, mesh: Mesh, arm: int, scale: float) -> Model:
+    """The model with arm ``arm``'s tip (corner) point mass times ``scale``."""
+    tips = np.asarray(mesh.node_sets["tips"], np.int64)
+    tip = tips[mesh.node_arm[tips] == arm] if len(mesh.node_arm) else tips[arm:arm + 1]
+    mass = model.nodes.mass.copy()
+    mass[tip] += (scale - 1.0) * mesh.node_point_mass[tip]
+    inv = np.where(model.nodes.inv_mass > 0, 1.0 / mass, 0.0)
+    return dataclasses.replace(model, nodes=Nodes(mass, inv, model.nodes.contact))
+
+
+def deployed(case):
+    """The deployed (flat) web or straight tethers of a case: (mesh, Structure of
+    :mod:`spinweb_fe.linear.steady`).
+
+    The fold is replaced by ``flat`` (webs) or ``straight`` (tethers) and the stowage by
+    none, so that the mesh and model are the case's flat reference with its hub ties.
+    """
+    pattern = "flat" if case.scene == "web" else "straight"
+    stowage = dataclasses.replace(case.stowage, **{k: None for k in
+                                                   case.stowage.__dataclass_fields__})
+    flat = dataclasses.replace(case, fold=dataclasses.replace(case.fold, pattern=pattern),
+                               stowage=stowage)
+    mesh = build_mesh(flat)
+    model = model_from_case(flat, mesh)
+    if not (np.all(np.isfinite(model.nodes.mass)) and np.all(np.isfinite(model.elements.ea))):
+        raise InputError(case.source, "cable", "node masses or E A are not finite")
+    return mesh, structure_from_model(model)
+
+
+def spin_rate(case, given=None) -> float:
+    """The spin rate [rad/s]: ``given``, else ``initial.omega``, else (a run that starts at
+    rest) the largest rate of a prescribed-rate law such as the spin ramp.
+
+    Raises
+    ------
+    InputError
+        If the rate is zero (or not finite).
+    """
+    if given is not None:
+        if not (math.isfinite(float(given)) and float(given) != 0.0):
+            raise InputError("--omega", "", f"must be finite and nonzero, got {given}: {NO_SPIN}")
+        return float(given)
+    omega = case.initial.omega
+    control = control_from_case(case)
+    if omega == 0.0 and control.law.prescribes_rate:
+        times = [*control.law.breaks(control.params), case.time.end]
+        omega = max((control.law.rate(control.params, t)[0] for t in times), key=abs)
+    if omega == 0.0:
+        raise InputError(case.source, "initial.omega", f"is 0 and no spin rate is prescribed: "
+                         f"{NO_SPIN}; pass --omega")
+    return float(omega)
 
 
 def control_from_case(case) -> Control:
@@ -129,13 +210,28 @@ def prepare(case) -> Scene:
                              f"must equal the prescribed hub rate at t = 0 ({w_law:g} rad/s) "
                              f"for control.law = '{control.law.name}'")
     _check_model(case, model)
-    state = initial_state(model, omega0, case.initial.spin, case.stowage.coil == "held")
+    model, state = perturbed(case, model, lambda m: initial_state(
+        m, omega0, case.initial.spin, case.stowage.coil == "held",
+        case.perturbation.hub_tilt_rate), _perturbation_field(case, mesh, model))
     dt = choose_dt(model, case.time.cfl, case.time.dt, case.output.history_dt)
     n_steps = case.time.end / dt
     if not n_steps <= MAX_STEPS:
         raise InputError(case.source, "time.end", f"needs {n_steps:.3g} steps of {dt:.3g} s, "
                          f"more than the limit {MAX_STEPS:.0e} (check time.dt and the cable)")
     return Scene(mesh, model, control, state, dt)
+
+
+def _perturbation_field(case, mesh: Mesh, model: Model):
+    """The shape w (n,) of a ``random`` or ``mode`` perturbation (None: tilt, or none)."""
+    p = case.perturbation
+    if p.shape == "tilt" or (p.z_amplitude == 0 and p.vz_amplitude == 0):
+        return None
+    if p.shape == "random":
+        return random_field(mesh.node_ref, model.hub.tied_idx, p.seed)
+    try:
+        return mode_field(deployed(case)[1], spin_rate(case))
+    except RunError as exc:
+        raise InputError(case.source, "perturbation.shape", f"'mode': {exc}") from None
 
 
 def _check_model(case, model):

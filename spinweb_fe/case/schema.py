@@ -15,6 +15,11 @@ from spinweb_fe.fe.control import LAWS
 REQUIRED = object()  # marker: the key has no default
 
 SPINS = ("all", "hub")
+MOTIONS = ("fixed_axis", "free")
+#: [perturbation] shape -> what it does
+SHAPES = {"tilt": "the web turned rigidly about the hub-frame x axis (its tied nodes stay)",
+          "random": "a smooth random field (plane waves, seed), zero at the hub",
+          "mode": "the lowest out-of-plane mode of the deployed web (spinweb modes)"}
 MAX_ELEMENTS = 10_000_000  # cable elements of a scene (memory: about 1 kB per element)
 MAX_HISTORY_ROWS = 10_000_000  # time.end / output.history_dt
 MAX_FRAMES = 100_000  # time.end / output.frame_dt
@@ -25,7 +30,7 @@ class Field:
     """One case key: its type, default, and check.
 
     kind: 'float' | 'int' | 'str' | 'bool' (true / false) | 'table' (a list of [t, value]
-    pairs of numbers);
+    pairs of numbers) | 'vector' (a list of three numbers, the check applies to each);
     check: 'pos' (> 0), 'nonneg' (>= 0),
     'frac' (0 < x <= 1), 'finite', 'nonzero', a tuple of allowed strings, or None.
     """
@@ -87,6 +92,14 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "mass": F("float", 100.0, "pos", "kg", "hub mass"),
         "inertia": F("float", None, "pos", "kg m^2", "hub inertia (default mass*radius^2)"),
         "friction": F("float", 0.0, "nonneg", "", "Coulomb coefficient of cable-hub contact"),
+        "motion": F("str", "fixed_axis", MOTIONS, "", "fixed_axis: the hub turns about +z; "
+                    "free: a rigid body of six degrees of freedom (docs/solver.md)"),
+        "inertia_transverse": F("float", None, "pos", "kg m^2", "free hub: inertia about a "
+                                "hub-plane axis of an axisymmetric hub (default inertia / 2, "
+                                "a thin ring)"),
+        "principal_inertia": F("vector", None, "pos", "kg m^2", "free hub: principal moments "
+                               "[I_x, I_y, I_z] about the hub-frame axes (z the spin axis), "
+                               "instead of inertia and inertia_transverse"),
     },
     "fold": {
         "pattern": F("str", None, tuple(WEB_FOLDS) + tuple(TETHER_FOLDS), "",
@@ -113,6 +126,31 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "spin": F("str", "all", SPINS, "", "all: hub and web spin; hub: only the hub"),
     },
     "control": _control_table(),
+    "perturbation": {
+        "shape": F("str", "tilt", tuple(SHAPES), "", "out-of-plane shape of z_amplitude and "
+                   "vz_amplitude: tilt, random or mode"),
+        "z_amplitude": F("float", 0.0, "nonneg", "m", "largest out-of-plane displacement of "
+                         "the web (tilt: of its deployed tips)"),
+        "vz_amplitude": F("float", 0.0, "nonneg", "m/s", "largest out-of-plane velocity of "
+                          "the web's free nodes, same shape"),
+        "seed": F("int", 0, "nonneg", "", "shape = random: seed of the field"),
+        "hub_tilt_rate": F("float", 0.0, "finite", "rad/s", "free hub: initial rate about "
+                           "its x axis (nutation)"),
+        "arm": F("int", 0, "nonneg", "", "the arm of tip_mass_scale and delay"),
+        "tip_mass_scale": F("float", 1.0, "nonneg", "", "that arm's tip mass times this"),
+        "delay": F("float", 0.0, "nonneg", "s", "held coil: that arm's whole coil stays on "
+                   "the hub until t = delay"),
+    },
+    "environment": {
+        "gravity_gradient": F("bool", False, None, "", "the tidal acceleration of a circular "
+                              "orbit about the Earth on every node and the hub (free hub)"),
+        "orbit_radius": F("float", None, "pos", "m", "gravity gradient: orbit radius from "
+                          "the Earth's centre"),
+        "altitude": F("float", None, "finite", "m", "gravity gradient: orbit altitude above "
+                      "the mean radius 6 371 km (instead of orbit_radius)"),
+        "orbit_tilt": F("float", 0.0, "finite", "rad", "gravity gradient: angle of the orbit "
+                        "normal from the spin axis +z, about +x"),
+    },
     "time": {
         "end": F("float", REQUIRED, "pos", "s", "end time"),
         "cfl": F("float", 0.2, "frac", "",

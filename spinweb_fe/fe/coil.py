@@ -90,6 +90,9 @@ class Coil(NamedTuple):
         0 none, 1 until_length, 2 until_time.
     bundle_value : float
         Fraction of the arm length, or the time [s].
+    arm_hold : (n_arms,) float64 [s]
+        Each arm's coil is held whole (its tip level too) until this time (0: released as
+        usual from the start; a delayed arm, ``[perturbation] delay``).
     """
 
     arm_ptr: np.ndarray
@@ -113,6 +116,7 @@ class Coil(NamedTuple):
     payout_len: np.ndarray
     bundle_code: int
     bundle_value: float
+    arm_hold: np.ndarray
 
 
 class CoilState(NamedTuple):
@@ -128,7 +132,7 @@ def no_coil(n_arms: int = 0) -> Coil:
     return Coil(np.zeros(n_arms + 1, np.int64), i0, np.zeros(0, np.int64), np.zeros((0, 3)), f0,
                 f0, np.zeros(0, bool), i0, np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), f0, np.zeros(n_arms), np.zeros(n_arms),
-                np.zeros(n_arms, bool), 0, 0.0, f0, f0, 0, 0.0)
+                np.zeros(n_arms, bool), 0, 0.0, f0, f0, 0, 0.0, np.zeros(n_arms))
 
 
 def _levels(mesh, coil_nodes):
@@ -162,7 +166,7 @@ def _free_elements(elem_nodes, level_of, level_arm, level_coord, level_first):
     return ptr.astype(np.int64), el, fr, to
 
 
-def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0)) -> Coil:
+def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0), hold=None) -> Coil:
     """The Coil of a coiled mesh (``mesh.node_sets['coil']``), its levels and free elements.
 
     Parameters
@@ -174,6 +178,8 @@ def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0)) -> Coi
         The rate law's paid-out length table; None: free payout.
     bundle : (code, value)
         See :data:`BUNDLES`.
+    hold : None or (n_arms,) float64 [s]
+        Times until which each arm's whole coil is held (None: none).
     """
     coil_nodes = np.asarray(mesh.node_sets.get("coil", []), np.int64)
     if len(coil_nodes) == 0:
@@ -215,7 +221,8 @@ def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0)) -> Coi
         test_to_coord=coord[level_of[t_to]], arm_end=ends, arm_base=bases, base_rim=base_rim,
         wrap=int(mesh.wrap), radius=float(mesh.hub_radius),
         payout_t=np.asarray(t, np.float64), payout_len=np.asarray(L, np.float64),
-        bundle_code=int(bundle[0]), bundle_value=float(bundle[1]))
+        bundle_code=int(bundle[0]), bundle_value=float(bundle[1]),
+        arm_hold=np.zeros(mesh.n_arms) if hold is None else np.asarray(hold, np.float64))
 
 
 def rate_table(rate: float):
@@ -224,10 +231,11 @@ def rate_table(rate: float):
 
 
 def coil_start(coil: Coil, held: bool) -> CoilState:
-    """Fronts at the start: a held coil has only its tip level free; a loose one all."""
+    """Fronts at the start: a held coil has only its tip level free (none while the arm is
+    held whole, ``arm_hold`` > 0); a loose one all."""
     n_arms = len(coil.arm_ptr) - 1
     counts = np.diff(coil.arm_ptr)
-    front = np.minimum(counts, 1) if held else counts.copy()
+    front = np.where(coil.arm_hold > 0, 0, np.minimum(counts, 1)) if held else counts.copy()
     return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0))
 
 
@@ -372,17 +380,20 @@ def pulls(coil, elems, pos, lev, broken=None):
 def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, broken=None):
     """After a step: release the front level of every arm whose free part pulls it off the
     hub and whose paid-out length would then not exceed the payout law's at time t (broken
-    elements: see :func:`pulls`). Returns the hub's effective inertia without the released
-    nodes [kg m^2]."""
+    elements: see :func:`pulls`); an arm held whole until ``arm_hold`` releases its tip
+    level then. Returns the hub's effective inertia without the released nodes [kg m^2]."""
     allowed = payout_allowed(coil, t)
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
         end = coil.arm_ptr[k + 1]
         if lev >= end:
             continue
+        if t < coil.arm_hold[k]:  # a delayed arm: its whole coil waits on the hub
+            continue
         after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end
                                    else coil.arm_base[k])
-        if after > allowed or not pulls(coil, elems, pos, lev, broken):
+        tip = cs.front[k] == 0  # a delayed arm's tip level goes when the wait is over
+        if not tip and (after > allowed or not pulls(coil, elems, pos, lev, broken)):
             continue
         for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
             i = coil.level_nodes[p]

@@ -16,7 +16,9 @@ import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.rigid import Body, fixed_axis
 from spinweb_fe.fe.rupture import Strength, no_strength
+from spinweb_fe.fe.tidal import Environment, no_environment
 
 
 class Elements(NamedTuple):
@@ -99,6 +101,8 @@ class Kernel(NamedTuple):
     hub: Hub
     coil: Coil
     strength: Strength
+    body: Body
+    env: Environment
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +127,10 @@ class Model:
         sqrt(1 + zeta^2) - zeta.
     strength : Strength
         Failure strain per element and rupture (fe.rupture; empty: no strength check).
+    body : Body
+        The hub as a free rigid body (fe.rigid; mass 0: the hub turns about a fixed axis).
+    env : Environment
+        The gravity gradient (fe.tidal; mean motion 0: none).
     """
 
     mesh: Mesh
@@ -134,11 +142,19 @@ class Model:
     wave_speed: float
     dt_critical: float
     strength: Strength = field(default_factory=no_strength)
+    body: Body = field(default_factory=fixed_axis)
+    env: Environment = field(default_factory=no_environment)
 
     @property
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
-        return Kernel(self.elements, self.nodes, self.hub, self.coil, self.strength)
+        return Kernel(self.elements, self.nodes, self.hub, self.coil, self.strength,
+                      self.body, self.env)
+
+    @property
+    def free_hub(self) -> bool:
+        """The hub is a free rigid body (fe.free_step), not on a fixed axis (fe.step)."""
+        return self.body.mass > 0.0
 
     @property
     def n_nodes(self) -> int:

@@ -9,20 +9,24 @@ import numpy as np
 
 from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
 from spinweb_fe.fe.hub import place_rigid
+from spinweb_fe.fe.rigid import RigidState, no_rigid, place_body, rigid_start
 from spinweb_fe.fe.rupture import StrengthState, no_strength, strength_start
 
 
 class HubState(NamedTuple):
-    """Hub motion about its fixed axis (+z).
+    """Hub motion about its fixed axis (+z); for a free hub (``State.rigid``) the same
+    quantities about its body axis.
 
     Attributes
     ----------
     angle : (1,) float64 [rad]
-        theta_n, counter-clockwise positive.
+        theta_n, counter-clockwise positive (free hub: its turn about its own axis,
+        2 atan2(q_z, q_w), continued in time).
     rate : (1,) float64 [rad/s]
-        omega_{n-1/2} (omega_0 before the run starts).
+        omega_{n-1/2} (omega_0 before the run starts; free hub: the body-axis rate).
     inertia : (1,) float64 [kg m^2]
-        Effective inertia now: the hub, the tied nodes and the held coil, sum m r^2.
+        Effective inertia now: the hub, the tied nodes and the held coil, sum m r^2 (free
+        hub: the body's moment about its axis).
     """
 
     angle: np.ndarray
@@ -31,11 +35,13 @@ class HubState(NamedTuple):
 
 
 class Totals(NamedTuple):
-    """Energy accumulated up to t_n [J] (each a (1,) float64)."""
+    """Energy accumulated up to t_n [J] (each a (1,) float64); ``gravity_work``: the work of
+    the gravity gradient (fe.tidal; free hub only)."""
 
     torque_work: np.ndarray
     damping_dissipation: np.ndarray
     contact_dissipation: np.ndarray
+    gravity_work: np.ndarray
 
 
 class State(NamedTuple):
@@ -59,6 +65,8 @@ class State(NamedTuple):
         t_n = n dt.
     strength : spinweb_fe.fe.rupture.StrengthState
         Broken elements, the strain peak since the last row, the rupture dissipation.
+    rigid : spinweb_fe.fe.rigid.RigidState
+        The free hub's body (empty arrays for a hub on a fixed axis).
     """
 
     node_pos: np.ndarray
@@ -71,6 +79,7 @@ class State(NamedTuple):
     step: np.ndarray
     time: np.ndarray
     strength: StrengthState
+    rigid: RigidState
 
     def copy(self) -> "State":
         """A deep copy (every array copied)."""
@@ -92,7 +101,8 @@ def from_arrays(arrays: dict) -> State:
     """Inverse of :func:`to_arrays` (KeyError names a missing field). Arrays without the
     strength fields (written before they existed, by scenes without a strength check) get
     those of no check."""
-    nested = {"hub": HubState, "coil": CoilState, "totals": Totals, "strength": StrengthState}
+    nested = {"hub": HubState, "coil": CoilState, "totals": Totals, "strength": StrengthState,
+              "rigid": RigidState}
     kw = {}
     for name in State._fields:
         if name == "strength" and not any(k.startswith("strength/") for k in arrays):
@@ -105,10 +115,13 @@ def from_arrays(arrays: dict) -> State:
     return State(**kw)
 
 
-def initial_state(model, omega: float, spin: str = "all", held: bool = True) -> State:
+def initial_state(model, omega: float, spin: str = "all", held: bool = True,
+                  tilt_rate: float = 0.0) -> State:
     """Initial positions from the mesh; rigid spin omega [rad/s] of hub and web ('all') or of
     the hub and what moves with it only ('hub'). A coiled model's coil is ``held`` (only its
-    tip level free) or loose. Velocities are v_0 (see ``run.loop.start``)."""
+    tip level free) or loose. A free hub (``model.free_hub``) also turns at ``tilt_rate``
+    [rad/s] about its x axis, with the nodes that move with it. Velocities are v_0 (see
+    ``run.loop.start``)."""
     pos = np.array(model.mesh.node_pos, dtype=np.float64)
     vel = np.zeros_like(pos)
     if spin == "all":
@@ -128,7 +141,12 @@ def initial_state(model, omega: float, spin: str = "all", held: bool = True) -> 
                      bool(cs.bundled[k]))
     place_held(coil, cs, pos, vel, 0.0, omega)
     inertia = hub.j_eff + held_inertia(coil, cs, model.nodes)
+    rigid = no_rigid()
+    if model.free_hub:
+        rigid = rigid_start(model, cs, omega, tilt_rate)
+        place_body(hub, coil, cs, rigid, pos, vel)
+        inertia = float(rigid.inertia[2, 2])
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),
                                                np.array([inertia])), cs,
-                 Totals(np.zeros(1), np.zeros(1), np.zeros(1)), np.zeros(1, np.int64),
-                 np.zeros(1), strength_start(model.strength))
+                 Totals(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+                 np.zeros(1, np.int64), np.zeros(1), strength_start(model.strength), rigid)

@@ -34,6 +34,7 @@ from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
 from spinweb_fe.fe.rupture import record_strength, strength_pass
+from spinweb_fe.fe.vectors import fixed_hub_row, node_momenta, plane_stats
 
 #: columns of the per-record scalar table that ``advance`` writes (see
 #: spinweb_fe.record.history for units and meaning)
@@ -331,15 +332,18 @@ def coil_step(coil, elems, nodes, state, t_next):
 
 
 @njit(cache=True)
-def advance(model, law, state, force, rec, dt, nsteps):
+def advance(model, law, state, force, rec, dt, nsteps, vec=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
     ``model`` is the kernel view of the Model (``Model.kernel``). ``force`` (nt, n, 3) holds
     one force buffer per thread (nt = 1: serial) and must be zero on entry (the node pass
     leaves it zeroed). Row k of ``rec.table`` holds REC_COLUMNS at integer step n,
     ``rec.probe_pos/vel`` the probe positions x_n and mean velocities, ``rec.arm_table`` the
-    arm data of :func:`record_arms`. Threads give the same result for a given thread count
-    (fixed chunks, fixed reduction order). Returns (status, rows): 0 ok, 1 non-finite.
+    arm data of :func:`record_arms`, and ``vec`` (rows, fe.vectors.VEC_WIDTH), if given, the
+    momentum vectors, the hub's pose and the distances from the hub plane (a run that can
+    leave the plane; without it numba compiles none of that). Threads give the same result
+    for a given thread count (fixed chunks, fixed reduction order). Returns (status, rows):
+    0 ok, 1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
@@ -376,6 +380,11 @@ def advance(model, law, state, force, rec, dt, nsteps):
             record_arms(coil, state.coil, rec.arm_table[nrec], t)
             if has_strength:
                 record_strength(state.strength, rec.strength_table[nrec])
+            if vec is not None:
+                vec[nrec] = 0.0
+                node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
+                plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]),
+                            vec[nrec])
         theta = state.hub.angle[0]
         w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout,
                                     sums, record)
@@ -387,6 +396,10 @@ def advance(model, law, state, force, rec, dt, nsteps):
         if record:
             write_row(rec.table[nrec], t, theta, w_old, w_new, torque, j_eff, sums, se, tmax,
                       totals, incr)
+            if vec is not None:
+                node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
+                fixed_hub_row(hub, coil, state.coil, nodes, pos, theta, 0.5 * (w_old + w_new),
+                              j_eff, vec[nrec])
             if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
                 return 1, nrec
             record_probes(rec, nrec, pos, vel, vprobe, False)

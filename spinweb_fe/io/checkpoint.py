@@ -17,8 +17,9 @@ and the history row of step n itself are not (the continued run writes them). It
 
 The control laws keep no memory of their own, so nothing else is needed. The file is written
 to a temporary name and renamed (``os.replace``), so a run killed while writing leaves the
-previous checkpoint intact. Version 1 files (before the held coil) are refused with a
-one-line reason.
+previous checkpoint intact. Version 3 added the free hub's rigid body (``/state/rigid/...``)
+and the gravity-gradient work (``/state/totals/gravity_work``); version 1 files (before the
+held coil) and version 2 files (before the free hub) are refused with a one-line reason.
 """
 
 from __future__ import annotations
@@ -39,7 +40,9 @@ from spinweb_fe.io.h5 import open_h5
 
 CHECKPOINT_NAME = "checkpoint.h5"
 CHECKPOINT_FORMAT = "spinweb-checkpoint"
-CHECKPOINT_VERSION = 2
+CHECKPOINT_VERSION = 3
+#: why an older version cannot be continued
+OLD_VERSIONS = {1: "version 1 predates the held coil", 2: "version 2 predates the free hub"}
 
 
 @dataclass
@@ -191,11 +194,13 @@ def read_checkpoint(path) -> Checkpoint:
         a = h5.attrs
         if a.get("format") != CHECKPOINT_FORMAT:
             raise InputError(path, "format", "not a spinweb checkpoint")
-        if int(a.get("checkpoint_version", -1)) != CHECKPOINT_VERSION:
+        version = int(a.get("checkpoint_version", -1))
+        if version != CHECKPOINT_VERSION:
+            why = OLD_VERSIONS.get(version, "an unknown version")
             raise InputError(path, "checkpoint_version",
                              f"version {a.get('checkpoint_version')} is not supported "
-                             f"(this spinweb reads {CHECKPOINT_VERSION}; version 1 predates "
-                             "the held coil: rerun the case)")
+                             f"(this spinweb reads {CHECKPOINT_VERSION}; {why}: rerun the "
+                             "case)")
         try:
             state, memory = _read(h5)
             entries = list(zip((float(t) for t in h5["pvd/time"][()]),

@@ -15,7 +15,6 @@ line search and, if Newton fails at the full load, continuation in omega^2.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -118,26 +117,6 @@ def structure_from_model(model) -> Structure:
     return Structure(np.array(model.mesh.node_ref, np.float64), model.nodes.mass.copy(),
                      np.array(el.nodes), np.array(el.rest_len), np.array(el.ea),
                      np.array(model.hub.tied_idx), float(model.hub.inertia))
-
-
-def deployed(case):
-    """The deployed (flat) web or straight tethers of a case: (mesh, :class:`Structure`).
-
-    The fold is replaced by ``flat`` (webs) or ``straight`` (tethers) and the stowage by
-    none, so that the mesh and model are the case's flat reference with its hub ties.
-    """
-    from spinweb_fe.case.scene import build_mesh, model_from_case
-
-    pattern = "flat" if case.scene == "web" else "straight"
-    stowage = dataclasses.replace(case.stowage, **{k: None for k in
-                                                   case.stowage.__dataclass_fields__})
-    flat = dataclasses.replace(case, fold=dataclasses.replace(case.fold, pattern=pattern),
-                               stowage=stowage)
-    mesh = build_mesh(flat)
-    model = model_from_case(flat, mesh)
-    if not (np.all(np.isfinite(model.nodes.mass)) and np.all(np.isfinite(model.elements.ea))):
-        raise InputError(case.source, "cable", "node masses or E A are not finite")
-    return mesh, structure_from_model(model)
 
 
 def element_state(s: Structure, xy):

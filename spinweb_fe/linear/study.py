@@ -13,14 +13,14 @@ import numpy as np
 
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.linear.modes import Modes, compute_modes
-from spinweb_fe.linear.steady import SteadyState, Structure, check_mechanism, deployed, solve_steady
+from spinweb_fe.case.scene import NO_SPIN, deployed, spin_rate  # noqa: F401 (spin_rate: cli)
+from spinweb_fe.linear.steady import SteadyState, Structure, check_mechanism, solve_steady
 
 log = logging.getLogger(__name__)
 
 #: swept parameter -> (unit, what it changes)
 SWEEP_PARAMS = {"omega": ("rad/s", "spin rate"), "tip_mass": ("kg", "corner (tip) mass")}
 MAX_SWEEP_POINTS = 200
-NO_SPIN = "a cable net without spin has no out-of-plane stiffness (the tension vanishes)"
 
 
 @dataclass(frozen=True)
@@ -33,32 +33,6 @@ class Analysis:
     modes: Modes
 
 
-def spin_rate(case, given=None) -> float:
-    """The spin rate [rad/s]: ``given``, else ``initial.omega``, else (a run that starts at
-    rest) the largest rate of a prescribed-rate law such as the spin ramp.
-
-    Raises
-    ------
-    InputError
-        If the rate is zero (or not finite).
-    """
-    from spinweb_fe.case.scene import control_from_case
-
-    if given is not None:
-        if not (math.isfinite(float(given)) and float(given) != 0.0):
-            raise InputError("--omega", "", f"must be finite and nonzero, got {given}: {NO_SPIN}")
-        return float(given)
-    omega = case.initial.omega
-    control = control_from_case(case)
-    if omega == 0.0 and control.law.prescribes_rate:
-        times = [*control.law.breaks(control.params), case.time.end]
-        omega = max((control.law.rate(control.params, t)[0] for t in times), key=abs)
-    if omega == 0.0:
-        raise InputError(case.source, "initial.omega", f"is 0 and no spin rate is prescribed: "
-                         f"{NO_SPIN}; pass --omega")
-    return float(omega)
-
-
 def analyse(case, omega: float, count: int, hub: str = "driven", built=None) -> Analysis:
     """Steady state (Newton) and the ``count`` lowest modes of the case's deployed web.
 
@@ -69,7 +43,7 @@ def analyse(case, omega: float, count: int, hub: str = "driven", built=None) -> 
     count : int
     hub : {'driven', 'free'}
     built : (mesh, Structure) or None
-        The deployed web, if already built (:func:`spinweb_fe.linear.steady.deployed`).
+        The deployed web, if already built (:func:`spinweb_fe.case.scene.deployed`).
 
     Raises
     ------

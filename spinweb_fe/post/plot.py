@@ -1,8 +1,12 @@
-"""The paper's four-panel figure: arm length L, arm angle phi, omega_centre, omega_tip."""
+"""The paper's four-panel figure (arm length L, arm angle phi, omega_centre, omega_tip) and the
+out-of-plane panels (the web's distance from the hub plane, the tips' heights, the hub's
+tilt and nutation, its transverse rate)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+
+import numpy as np
 
 from spinweb_fe.errors import InputError
 from spinweb_fe.io.folder import check_writable
@@ -10,6 +14,30 @@ from spinweb_fe.io.h5 import history_of, read_result
 
 PANELS = (("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
           ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]"))
+#: the out-of-plane panels: derived column -> axis label
+OOP_PANELS = (("web_rms_max", "web from hub plane: RMS, max [m]"),
+              ("tip_height", "tip height above hub plane [m]"),
+              ("hub_tilt", "hub axis from +z, from L [rad]"),
+              ("hub_transverse_rate", "hub transverse rate [rad/s]"))
+PANEL_SETS = ("arms", "out_of_plane")
+
+
+def out_of_plane_columns(h) -> dict:
+    """The out-of-plane panels' curves of a history with the vector columns: the web's RMS
+    and largest distance from the hub plane (T, 2), each tip's height above it (T, n), the
+    hub axis' angle from +z and from the angular momentum (T, 2), the hub's rate about
+    axes in its plane (T,)."""
+    axis, centre = h["hub_axis"], h["hub_position"]
+    height = np.einsum("tkd,td->tk", h["tip_position"] - centre[:, None, :], axis)
+    L = h["angular_momentum_vector"]
+    norm = np.maximum(np.linalg.norm(L, axis=1), 1e-300)
+    from_l = np.arccos(np.clip(np.einsum("td,td->t", axis, L) / norm, -1.0, 1.0))
+    tilt = np.arccos(np.clip(axis[:, 2], -1.0, 1.0))
+    w = h["hub_angular_velocity"]
+    transverse = np.linalg.norm(w - np.einsum("td,td->t", w, axis)[:, None] * axis, axis=1)
+    return {"web_rms_max": np.column_stack([h["out_of_plane_rms"], h["out_of_plane_max"]]),
+            "tip_height": height, "hub_tilt": np.column_stack([tilt, from_l]),
+            "hub_transverse_rate": transverse}
 
 
 def load_for_plot(path):
@@ -30,8 +58,23 @@ def load_for_plot(path):
     return h, label
 
 
-def plot_histories(curves, out, title=None, arm=0, t_max=None):
-    """Overlay histories on the four panels and save ``out``.
+def _oop_panels(axes, t, cols, label, style):
+    """One file's curves on the out-of-plane panels: the first of each pair solid, the
+    second dashed; every tip on the tip panel."""
+    for ax, (key, ylab) in zip(axes.flat, OOP_PANELS):
+        y = cols[key]
+        y = y if y.ndim == 2 else y[:, None]
+        for j in range(y.shape[1]):
+            first = j == 0
+            ls = "-" if first or key == "tip_height" else "--"
+            ax.plot(t, y[:, j], *([style] if style else []), ls=ls, lw=1.0 if first else 0.8,
+                    label=label if first else None)
+        ax.set_ylabel(ylab)
+
+
+def plot_histories(curves, out, title=None, arm=0, t_max=None, panels="arms"):
+    """Overlay histories on the four panels (``panels`` 'arms', or 'out_of_plane':
+    :data:`OOP_PANELS`) and save ``out``.
 
     Parameters
     ----------
@@ -52,6 +95,10 @@ def plot_histories(curves, out, title=None, arm=0, t_max=None):
     for h, label, style in curves:
         t = h["time"]
         sel = t <= (t_max if t_max else t[-1]) + 1e-12
+        if panels == "out_of_plane":
+            _oop_panels(axes, t[sel], {k: v[sel] for k, v in out_of_plane_columns(h).items()},
+                        label, style)
+            continue
         for ax, (key, ylab) in zip(axes.flat, PANELS):
             if key not in h:
                 continue
@@ -87,23 +134,31 @@ def check_figure_path(out) -> Path:
     return out
 
 
-def four_panel(files, out, labels=None, arm=0, title=None):
+def four_panel(files, out, labels=None, arm=0, title=None, panels="arms"):
     """The four panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``.
 
     Raises
     ------
     InputError
-        An unknown figure suffix, an unwritable folder, an unreadable file, a file without
-        history rows, or an ``arm`` that some file does not have.
+        An unknown figure suffix or panel set, an unwritable folder, an unreadable file, a
+        file without history rows (or, for the out-of-plane panels, without the vector
+        columns), or an ``arm`` that some file does not have.
     """
+    if panels not in PANEL_SETS:
+        raise InputError("--panels", "", f"unknown panel set '{panels}' (valid: "
+                         f"{', '.join(PANEL_SETS)})")
     check_figure_path(out)
     curves = []
     for i, f in enumerate(files):
         h, label = load_for_plot(f)
+        if panels == "out_of_plane" and "hub_axis" not in h:
+            raise InputError(f, "history", "no out-of-plane histories (a fixed-axis run that "
+                             "starts in the plane stays there exactly; give it a "
+                             "[perturbation] or hub.motion = 'free')")
         n_arms = h["arm_length"].shape[1] if "arm_length" in h and h["arm_length"].ndim == 2 \
             else 1
         if not 0 <= arm < n_arms:
             raise InputError("--arm", "", f"arm {arm} does not exist: {f} has {n_arms} "
                              f"arm{'s' if n_arms > 1 else ''} (0 to {n_arms - 1})")
         curves.append((h, labels[i] if labels else label, None))
-    return plot_histories(curves, out, title=title, arm=arm)
+    return plot_histories(curves, out, title=title, arm=arm, panels=panels)

@@ -17,11 +17,14 @@ ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, redu
 
 def energy_balance(h):
     """KE + SE - W + D (should stay constant) for a history dict / row table; D counts the
-    rupture dissipation when the history has one (a scene with rupture)."""
+    rupture dissipation when the history has one (a scene with rupture), W the work of the
+    gravity gradient when there is one."""
     bal = (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
            + h["damping_dissipation"] + h["contact_dissipation"])
     if "rupture_dissipation" in h:
         bal = bal + h["rupture_dissipation"]
+    if "gravity_gradient_work" in h:
+        bal = bal - h["gravity_gradient_work"]
     return bal
 
 

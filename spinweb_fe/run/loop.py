@@ -13,13 +13,14 @@ from typing import NamedTuple
 import numpy as np
 
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe import step
+from spinweb_fe.fe import free_step, step
 from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.state import State
+from spinweb_fe.fe.vectors import VEC_WIDTH
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
-from spinweb_fe.record.history import table_rows
+from spinweb_fe.record.history import hub_plane, table_rows, vector_rows
 from spinweb_fe.record.recorders import Frame, RunInfo
 from spinweb_fe.record.strength import StrengthMonitor, strength_columns
 
@@ -58,7 +59,19 @@ class RunResult:
 
 def start(model: Model, control: Control, state: State, dt: float):
     """Shift v_0, omega_0 back half a step (second-order start of central differences)."""
-    step.start_half_step(model.kernel, control.kernel, state, dt)
+    if model.free_hub:
+        free_step.start_free(model.kernel, control.kernel, state, dt)
+    else:
+        step.start_half_step(model.kernel, control.kernel, state, dt)
+
+
+def records_vectors(model: Model, state: State) -> bool:
+    """Whether a run records the vector columns (momentum vectors, the hub's pose, the
+    distances from the hub plane): a free hub, or a scene not exactly in the plane (some
+    node with z or v_z not 0). A fixed-axis scene in the plane stays there exactly (its
+    forces have no z part), and its step loop is the one without them."""
+    return bool(model.free_hub or np.any(state.node_pos[:, 2] != 0.0)
+                or np.any(state.node_vel[:, 2] != 0.0))
 
 
 def current_tension(model: Model, pos, vel, broken=None):
@@ -107,7 +120,7 @@ def choose_threads(model: Model, requested=None) -> int:
 class _Chunks:
     """The step loop's buffers and the turning of its records into history rows."""
 
-    def __init__(self, model, control, tracker, rec_every, threads, dt):
+    def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, control.kernel)
         self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
         rows = ROWS_PER_CHUNK + 1
@@ -117,6 +130,7 @@ class _Chunks:
                                   np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)),
                                   np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)),
                                   np.zeros((rows, 5 if len(model.strength.fail) else 0)))
+        self.vec = np.zeros((rows, VEC_WIDTH)) if vectors or model.free_hub else None
         self.coiled = len(model.coil.level_nodes) > 0
         self.rate = len(model.coil.payout_t) > 0
         self.row_dt = rec_every * dt
@@ -125,14 +139,27 @@ class _Chunks:
         self.history = []
 
     def advance(self, state, dt, nsteps):
+        if self.model.free_hub:
+            return free_step.advance_free(*self.args, state, self.force, self.rec, self.vec,
+                                          dt, nsteps)
+        if self.vec is not None:
+            return step.advance(*self.args, state, self.force, self.rec, dt, nsteps, self.vec)
         return step.advance(*self.args, state, self.force, self.rec, dt, nsteps)
 
     def rows(self, nrec) -> dict:
         rows = table_rows(self.rec.table, nrec)
         arms = self.rec.arm_table[:nrec] if self.coiled else None
-        rows.update(self.tracker.columns(rows, self.rec.probe_pos[:nrec],
-                                         self.rec.probe_vel[:nrec], arms, self.row_dt,
-                                         self.rate))
+        pos, vel = self.rec.probe_pos[:nrec], self.rec.probe_vel[:nrec]
+        vectors = None
+        if self.vec is not None:
+            vectors = vector_rows(self.vec[:nrec], self.model.env.n > 0)
+            if self.model.free_hub:  # the arms are measured in the hub's plane
+                pos, vel = hub_plane(pos, vel, vectors["hub_position"],
+                                     vectors["hub_quaternion"])
+        rows.update(self.tracker.columns(rows, pos, vel, arms, self.row_dt, self.rate))
+        if vectors is not None:
+            rows["tip_position"] = self.rec.probe_pos[:nrec, :self.tracker.n].copy()
+            rows.update(vectors)
         rows.update(strength_columns(self.model, self.rec.strength_table[:nrec]))
         self.history.append(rows)
         return rows
@@ -190,7 +217,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if resume and owner.name in resume:
             owner.restore(resume[owner.name])
     threads = choose_threads(model, threads)
-    chunks = _Chunks(model, control, tracker, rec_every, threads, dt)
+    chunks = _Chunks(model, control, tracker, rec_every, threads, dt,
+                     records_vectors(model, state))
     t_compile = time.perf_counter()
     if resume is None:
         start(model, control, state, dt)
@@ -269,7 +297,7 @@ def time_steps(model: Model, control: Control, state: State, dt: float, threads:
     on a copy of ``state`` (``nsteps`` give at most ROWS_PER_CHUNK rows)."""
     choose_threads(model, threads)
     chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), rec_every,
-                     threads, dt)
+                     threads, dt, records_vectors(model, state))
     trial = state.copy()
     t0 = time.perf_counter()
     chunks.advance(trial, dt, 0)
