@@ -29,8 +29,8 @@ from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, fr
                                  hub_centre, inv_inertia, mul, place_body, rotation,
                                  spatial_inertia)
 from spinweb_fe.fe.rupture import record_strength
-from spinweb_fe.fe.step import (NodeMotion, element_pass, eval_elements, record_arms,
-                                record_probes, split)
+from spinweb_fe.fe.step import (NodeMotion, checks_strength, element_pass, eval_elements,
+                                fold_buffers, record_arms, record_probes)
 from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 from spinweb_fe.fe.vectors import I_GRAVITY, I_HUB, node_momenta, plane_stats
 
@@ -261,16 +261,15 @@ def after_step(model, state, t_next):
 
 
 @njit(cache=True)
-def advance_free(model, law, state, force, rec, vec, dt, nsteps):
+def advance_free(model, law, state, force, rec, vec, dt, nsteps, ebounds=None):
     """``nsteps`` steps of a free-hub scene; rows as :func:`spinweb_fe.fe.step.advance`, the
     vector table ``vec`` (rows, fe.vectors.VEC_WIDTH) always. Returns (status, rows)."""
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
-    has_strength = strength.fail.shape[0] > 0
+    has_strength = checks_strength(strength)
     nt = force.shape[0]
     pos, vel = state.node_pos, state.node_vel
     rs, totals = state.rigid, state.totals
-    ebounds = split(elems.nodes.shape[0], nt)
     eout = np.zeros((nt, 8))
     sums = np.zeros(2)
     incr = np.zeros(4)
@@ -285,9 +284,7 @@ def advance_free(model, law, state, force, rec, vec, dt, nsteps):
         t = step * dt
         se, tmax, pdamp = element_pass(elems, strength, state.strength, pos, vel, force,
                                        ebounds, eout, record, no_tension, dt)
-        for c in range(1, nt):
-            force[0] += force[c]
-            force[c] = 0.0
+        fold_buffers(force)
         if has_coil:
             gather_bundles(coil, state.coil, force)
         R = rotation(rs.quaternion)

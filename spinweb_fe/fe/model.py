@@ -148,7 +148,8 @@ class Model:
     @property
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
-        return Kernel(self.elements, self.nodes, self.hub, self.coil, self.strength,
+        strength = self.strength if len(self.strength.fail) else None  # None: compiles none
+        return Kernel(self.elements, self.nodes, self.hub, self.coil, strength,
                       self.body, self.env)
 
     @property

@@ -203,8 +203,9 @@ def strength_pass(elems, strength, ss, pos, vel, force, ebounds, sout, record, n
     """Element forces of this step with the strength check (one thread, force (1, n, 3), or
     one buffer per thread); the peak since the last row, the broken count and the rupture
     dissipation go into ``ss`` (:class:`StrengthState`). Returns (strain energy, max tension,
-    damping power) as the plain element pass does."""
-    if force.shape[0] == 1:
+    damping power) as the plain element pass does (``ebounds`` None: one thread, and numba
+    compiles no thread kernel)."""
+    if ebounds is None or force.shape[0] == 1:
         se, tmax, pdamp, u, s, e, released, nbreak = accumulate_strength(
             elems, strength, ss.broken, pos, vel, force[0], 0, elems.nodes.shape[0], record,
             no_tension, dt)

@@ -243,17 +243,30 @@ def split(n, parts):
 @njit(cache=True)
 def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no_tension, dt):
     """Element forces of this step into the force buffers: one thread (force (1, n, 3)) or
-    several (one buffer per thread). A scene with a failure strain takes the strength pass
-    (fe.rupture; ``ss`` its state, ``eout`` (nt, 8), ``dt`` the step). Returns (strain
-    energy, max tension, damping power)."""
-    if strength.fail.shape[0] > 0:
-        return strength_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record,
-                             no_tension, dt)
-    if force.shape[0] == 1:
+    several (one buffer per thread, ``ebounds`` their element ranges). A scene with a failure
+    strain takes the strength pass (fe.rupture; ``ss`` its state, ``eout`` (nt, 8), ``dt``
+    the step). Returns (strain energy, max tension, damping power).
+
+    ``strength`` None (no strength check) and ``ebounds`` None (one thread) are decided by
+    numba from the argument types, before it types the branches: a scene compiles only the
+    passes it can take (the strength and thread kernels cost seconds of compile time)."""
+    if strength is not None:
+        if strength.fail.shape[0] > 0:
+            return strength_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record,
+                                 no_tension, dt)
+    if ebounds is None or force.shape[0] == 1:
         return accumulate_elements(elems, pos, vel, force[0], 0, elems.nodes.shape[0], record,
                                    no_tension)
     accumulate_threads(elems, pos, vel, force, ebounds, record, eout)
     return eout[:, 0].sum(), eout[:, 1].max(), eout[:, 2].sum()
+
+
+@njit(cache=True)
+def checks_strength(strength):
+    """Whether the kernel's ``strength`` checks any element (None: no, at compile time)."""
+    if strength is None:
+        return False
+    return strength.fail.shape[0] > 0
 
 
 @njit(cache=True)
@@ -264,17 +277,27 @@ def node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout, sums, r
     nt = force.shape[0]
     mv = NodeMotion(state.node_pos, state.node_vel, state.node_mass, state.node_inv_mass)
     j_eff = state.hub.inertia[0]
-    if nt > 1 and hub.friction == 0.0:
+    if nbounds is not None and nt > 1 and hub.friction == 0.0:  # None: pruned by numba
         integrate_threads(nodes, hub, mv, force, w_new, w_new - w_old, j_eff, dt, nbounds,
                           record, nout)
         for k in range(5):
             sums[k] = nout[:, k].sum()
         return w_new, sums[4]
-    for c in range(1, nt):
-        force[0] += force[c]
-        force[c] = 0.0
+    fold_buffers(force)
     return integrate_nodes(nodes, hub, mv, force[0], w_new, w_new - w_old, j_eff, dt, 0,
                            mv.pos.shape[0], record, sums)
+
+
+@njit(cache=True)
+def fold_buffers(force):
+    """force[0] += force[c], force[c] = 0 for every other thread's buffer c, in order (an
+    explicit loop: numba's array expression for it costs seconds of compile time building
+    its shape-mismatch message)."""
+    for c in range(1, force.shape[0]):
+        for i in range(force.shape[1]):
+            for d in range(3):
+                force[0, i, d] += force[c, i, d]
+                force[c, i, d] = 0.0
 
 
 @njit(cache=True)
@@ -332,7 +355,7 @@ def coil_step(coil, elems, nodes, state, t_next):
 
 
 @njit(cache=True)
-def advance(model, law, state, force, rec, dt, nsteps, vec=None):
+def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, nbounds=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
     ``model`` is the kernel view of the Model (``Model.kernel``). ``force`` (nt, n, 3) holds
@@ -341,18 +364,18 @@ def advance(model, law, state, force, rec, dt, nsteps, vec=None):
     ``rec.probe_pos/vel`` the probe positions x_n and mean velocities, ``rec.arm_table`` the
     arm data of :func:`record_arms`, and ``vec`` (rows, fe.vectors.VEC_WIDTH), if given, the
     momentum vectors, the hub's pose and the distances from the hub plane (a run that can
-    leave the plane; without it numba compiles none of that). Threads give the same result
-    for a given thread count (fixed chunks, fixed reduction order). Returns (status, rows):
-    0 ok, 1 non-finite.
+    leave the plane; without it numba compiles none of that). Several threads (nt > 1) need
+    ``ebounds`` and ``nbounds``, the element and node ranges of each (:func:`split`); without
+    them (one thread) numba compiles no thread kernel. Threads give the same result for a
+    given thread count (fixed chunks, fixed reduction order). Returns (status, rows): 0 ok,
+    1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
-    has_strength = strength.fail.shape[0] > 0
+    has_strength = checks_strength(strength)
     nt = force.shape[0]
     pos = state.node_pos
     vel = state.node_vel
-    ebounds = split(elems.nodes.shape[0], nt)
-    nbounds = split(pos.shape[0], nt)
     eout = np.zeros((nt, 8))
     nout = np.zeros((nt, 5))
     sums = np.zeros(5)

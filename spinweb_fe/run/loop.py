@@ -123,6 +123,9 @@ class _Chunks:
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, control.kernel)
         self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
+        # the thread ranges; None on one thread, so that numba compiles no thread kernel
+        self.bounds = (None, None) if threads == 1 else (
+            step.split(model.n_elems, threads), step.split(model.n_nodes, threads))
         rows = ROWS_PER_CHUNK + 1
         n_probes = len(tracker.probes)
         self.rec = step.Recording(rec_every, tracker.probes,
@@ -141,10 +144,9 @@ class _Chunks:
     def advance(self, state, dt, nsteps):
         if self.model.free_hub:
             return free_step.advance_free(*self.args, state, self.force, self.rec, self.vec,
-                                          dt, nsteps)
-        if self.vec is not None:
-            return step.advance(*self.args, state, self.force, self.rec, dt, nsteps, self.vec)
-        return step.advance(*self.args, state, self.force, self.rec, dt, nsteps)
+                                          dt, nsteps, self.bounds[0])
+        return step.advance(*self.args, state, self.force, self.rec, dt, nsteps, self.vec,
+                            *self.bounds)
 
     def rows(self, nrec) -> dict:
         rows = table_rows(self.rec.table, nrec)
