@@ -301,7 +301,7 @@ def held_moment(coil, cs, pos, forces):
     return tau
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def gather_bundles(coil, cs, forces):
     """The force on each released level of a bundled arm, summed on its spine node (buffer 0;
     the other nodes' rows are cleared)."""
@@ -319,7 +319,7 @@ def gather_bundles(coil, cs, forces):
                         forces[c, i, d] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def scatter_bundles(coil, cs, pos, vel):
     """The other nodes of each bundle take its spine node's position and velocity."""
     for k in range(coil.arm_ptr.shape[0] - 1):
@@ -349,7 +349,7 @@ def payout_allowed(coil, t):
     return ll[-1]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def free_length(coil, cs, k):
     """Paid-out length [m] of arm k: from its front level (or its base) to the tip."""
     lev = coil.arm_ptr[k] + cs.front[k]
@@ -421,7 +421,7 @@ def open_bundles(coil, cs, nodes, mass, inv_mass, t):
             cs.bundled[k] = False
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def front_row(coil, cs, k, t):
     """Arm k's held coil at time t: (front coordinate, next outer level's coordinate, 1 if
     the pinned node lies on the rim, 1 if the payout law holds the front back) [m, m, -, -].

@@ -8,7 +8,7 @@ from numba import njit
 from spinweb_fe.fe.control import eval_control
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def moment_of(pos, forces, idx):
     """z-moment sum (x f_y - y f_x) of the forces on nodes ``idx``, over the per-thread force
     buffers (nt, n, 3)."""
@@ -40,7 +40,7 @@ def place_rigid(pos, vel, idx, ref, theta, omega):
         vel[i, 2] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def hub_step(law, j_eff, tau, w_old, t, dt):
     """Hub rate over the step: (torque M_n [N m], omega_{n+1/2}).
 

@@ -229,7 +229,7 @@ def merge_peak(ss, u, strain, elem, released, nbreak):
     ss.count[0] += nbreak
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def record_strength(ss, row):
     """One row of the strength table (STRENGTH_COLUMNS) at a record step, after its element
     pass (utilisation 0 and element -1 once every element is broken); the peak starts again

@@ -261,7 +261,7 @@ def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no
     return eout[:, 0].sum(), eout[:, 1].max(), eout[:, 2].sum()
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def checks_strength(strength):
     """Whether the kernel's ``strength`` checks any element (None: no, at compile time)."""
     if strength is None:
@@ -288,7 +288,7 @@ def node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout, sums, r
                            mv.pos.shape[0], record, sums)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def fold_buffers(force):
     """force[0] += force[c], force[c] = 0 for every other thread's buffer c, in order (an
     explicit loop: numba's array expression for it costs seconds of compile time building
@@ -300,7 +300,7 @@ def fold_buffers(force):
                 force[c, i, d] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def record_probes(rec, k, pos, vel, vprobe, before):
     """Probe positions x_n and velocities into row k: ``before`` the node pass keeps
     v_{n-1/2} in ``vprobe``; after it the row gets the mean with v_{n+1/2}."""
@@ -314,7 +314,7 @@ def record_probes(rec, k, pos, vel, vprobe, before):
                 rec.probe_vel[k, p, d] = 0.5 * (vprobe[p, d] + vel[probes[p], d])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def write_row(row, t, theta, w_old, w_new, torque, j_eff, sums, se, tmax, totals, incr):
     """One history row at step n (REC_COLUMNS): energies as the mean of the two half-step
     values, accumulated work and dissipation up to t_n (``incr``: this step's increments)."""
@@ -331,7 +331,7 @@ def write_row(row, t, theta, w_old, w_new, torque, j_eff, sums, se, tmax, totals
     row[10] = tmax
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def record_arms(coil, cs, table, t):
     """Per arm at a record step (see fe.coil.front_row): the front's and the next outer
     level's arm coordinates, pinned on the rim (1/0), held back by the payout law (1/0),
@@ -342,7 +342,7 @@ def record_arms(coil, cs, table, t):
         table[k, 4] = allowed if np.isfinite(allowed) else np.nan
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def coil_step(coil, elems, nodes, state, t_next):
     """After a step: release the fronts that the free parts pull off the hub (broken
     elements pull nothing), then open the bundles that are due."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -119,7 +120,14 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
                 state = _resumed_state(case, model, dt, resume)
             threads = choose_threads(model, threads)
             rec_every = max(1, round(case.output.history_dt / dt))
+            notice = progress and sys.stderr.isatty()  # at a terminal: say what the wait is
+            if notice:
+                sys.stderr.write("step loop: loading it from numba's cache, or compiling it "
+                                 "(the first run of a kind of scene: 10-20 s) ...\r")
+                sys.stderr.flush()
             rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every)
+            if notice:
+                sys.stderr.write("\x1b[2K")  # clear that line
             est = estimate(case, model, dt, step0, rate, checkpoint_dt > 0)
             check_budget(case, est, out_dir, force)
             log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), "
@@ -128,6 +136,9 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
                      f", from step {step0}" if resume is not None else "")
             for line in est.lines(threads):
                 log.info("%s", line)
+            if compile_s > 2.0:
+                log.info("step loop: compiled in %.1f s (numba; later runs of such a scene "
+                         "load it from the cache)", compile_s)
         with FolderLock(out_dir):
             aside = Aside(out_dir)
             if resume is None:
