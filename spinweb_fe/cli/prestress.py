@@ -50,26 +50,6 @@ def _flat_mesh(case, no_hub):
         raise InputError(case.source, f"web.{exc.param}", exc.reason) from None
 
 
-def _spin_rate(case, given):
-    """--omega, else initial.omega, else (a run that starts at rest) the largest rate of a
-    prescribed-rate law; InputError if the load would vanish."""
-    from spinweb_fe.case.scene import control_from_case
-
-    if given is not None:
-        if float(given) == 0.0:
-            raise InputError("--omega", "", "must be nonzero: the centrifugal load vanishes")
-        return float(given)
-    omega = case.initial.omega
-    control = control_from_case(case)
-    if omega == 0.0 and control.law.prescribes_rate:
-        times = [*control.law.breaks(control.params), case.time.end]
-        omega = max((control.law.rate(control.params, t)[0] for t in times), key=abs)
-    if omega == 0.0:
-        raise InputError(case.source, "initial.omega", "the web starts at rest and no spin "
-                         "rate is prescribed: the centrifugal load vanishes; pass --omega")
-    return omega
-
-
 def run(args) -> int:
     from spinweb_fe.linear.prestress import analyse, format_report
 
@@ -96,7 +76,9 @@ def run(args) -> int:
         raise InputError(*(("--mesh-width", "") if given else (case.source, "web.mesh_width")),
                          f"{mesh.n_elems} bars are too many for the dense force method "
                          f"(limit {MAX_BARS}); use --mesh-width with a coarser t")
-    omega = _spin_rate(case, args.omega)
+    from spinweb_fe.case.scene import spin_rate
+
+    omega = spin_rate(case, args.omega)
     rep = analyse(mesh, omega, line_density)
     w = case.web
     title = (f"{w.topology} (S = {w.side:g} m, t = {w.mesh_width:g} m, "
