@@ -201,3 +201,218 @@ def test_bad_inputs_exit_2(demo_h5, tmp_path, capsys):
         err = capsys.readouterr().err
         assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "a.png").exists()
+
+
+# --- the oblique view (--view oblique, --z-scale) -------------------------------------------
+
+TILTED = """title = "flat 20 m web tilted by 0.1 rad"
+[web]
+side = 20.0
+mesh_width = 2.0
+areal_density = 1.267e-2
+[tip_mass]
+mass = 1.0
+[hub]
+radius = 1.0
+mass = 10.0
+motion = "free"
+[fold]
+pattern = "flat"
+[initial]
+omega = 6.283185307179586
+[perturbation]
+shape = "tilt"
+z_amplitude = 1.0
+[time]
+end = 0.02
+[output]
+history_dt = 1e-3
+frame_dt = 0.01
+"""
+
+
+@pytest.fixture(scope="module")
+def tilted_h5(tmp_path_factory):
+    """A flat 20 m web on a free hub, turned 0.1 rad about x (tips 1 m out of the plane)."""
+    d = tmp_path_factory.mktemp("render") / "tilted"
+    d.mkdir()
+    (d / "case.toml").write_text(TILTED)
+    assert main(["run", str(d / "case.toml"), "-o", str(d / "out"), "--no-progress"]) == 0
+    return d / "out" / "results.h5"
+
+
+@pytest.fixture(scope="module")
+def flattened_h5(tilted_h5, tmp_path_factory):
+    """The same result with every frame's z set to 0 (hub pose untouched)."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("render") / "flattened.h5"
+    shutil.copy(tilted_h5, out)
+    with h5py.File(out, "r+") as h5:
+        pos = h5["frames/position"][()]
+        assert np.max(np.abs(pos[..., 2])) > 0.5  # the tilt lifts the tips about 1 m
+        pos[..., 2] = 0.0
+        h5["frames/position"][...] = pos
+    return out
+
+
+def picture(path, **kw):
+    rd.render(path, kw.pop("out"), size=SIZE, **kw)
+
+
+def png(path):
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def skip_without_vtk(renderer):
+    if renderer == "pyvista":
+        ok, why = rd.pyvista_works()
+        if not ok:
+            pytest.skip(f"VTK has no off-screen OpenGL back end here ({why})")
+
+
+def test_view_projection():
+    top, obl = rd.View(), rd.View("oblique", 2.0)
+    p = np.array([[1.0, 2.0, 3.0]])
+    np.testing.assert_allclose(top.screen(top.display(p)), [[1.0, 2.0]])
+    np.testing.assert_allclose(obl.screen(obl.display(p)),
+                               [[1.0, 2.0 * 0.5 + 2.0 * 3.0 * math.sqrt(3) / 2]])
+    # the line of sight is 30 degrees below the x-y plane, perpendicular to the picture axes
+    assert math.isclose(obl.toward_camera[2], 0.5) and abs(obl.toward_camera @ obl.up) < 1e-15
+    assert obl.toward_camera @ obl.right == 0 and obl.up @ obl.right == 0
+    assert top.caption() == "" and "30 deg" in rd.View("oblique").caption()
+    assert "drawn x 2" in obl.caption() and "drawn" not in rd.View("oblique").caption()
+
+
+@pytest.mark.parametrize("renderer", ["pyvista", "matplotlib"])
+def test_top_view_is_unchanged(demo_h5, tilted_h5, flattened_h5, tmp_path, renderer):
+    """The default view is the top view, and it does not see z: a planar web gives the same
+    picture as before the option existed, whatever the out-of-plane state."""
+    skip_without_vtk(renderer)
+    picture(demo_h5, out=tmp_path / "default.png", renderer=renderer)
+    picture(demo_h5, out=tmp_path / "top.png", renderer=renderer, view="top", z_scale=1.0)
+    assert np.array_equal(png(tmp_path / "default.png"), png(tmp_path / "top.png"))
+    picture(tilted_h5, out=tmp_path / "tilted.png", renderer=renderer)
+    picture(flattened_h5, out=tmp_path / "flat.png", renderer=renderer)
+    a, b = png(tmp_path / "tilted.png"), png(tmp_path / "flat.png")
+    assert_picture(a)
+    # matplotlib draws x-y only; VTK's depth test may order crossing lines differently
+    assert np.mean(np.any(a != b, axis=-1)) <= (0 if renderer == "matplotlib" else 0.002)
+
+
+@pytest.mark.parametrize("renderer", ["pyvista", "matplotlib"])
+def test_oblique_view_shows_the_tilt(tilted_h5, flattened_h5, tmp_path, renderer):
+    skip_without_vtk(renderer)
+    top, obl = tmp_path / "top.png", tmp_path / "obl.png"
+    picture(tilted_h5, out=top, renderer=renderer)
+    picture(tilted_h5, out=obl, renderer=renderer, view="oblique")
+    picture(flattened_h5, out=tmp_path / "flat.png", renderer=renderer, view="oblique")
+    picture(tilted_h5, out=tmp_path / "x5.png", renderer=renderer, view="oblique", z_scale=5)
+    a, b, flat, x5 = (png(p) for p in (top, obl, tmp_path / "flat.png", tmp_path / "x5.png"))
+    for img in (b, flat, x5):
+        assert_picture(img)
+    assert np.mean(np.any(a != b, axis=-1)) > 0.02  # not the top view
+    # the web's height / width in pixels (coloured pixels left of the colour bar, which
+    # starts at 0.82 of the width) is that of its nodes projected to (x, y sin 30 + z cos 30)
+    # (z times the z scale): 0.50 for the flat web, 0.58 tilted by 0.1 rad, 0.89 with z x 5
+    def aspect(img):
+        mask = coloured(img)[:, : int(0.8 * img.shape[1])]
+        rows, cols = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        return (rows[-1] - rows[0]) / (cols[-1] - cols[0])
+
+    def projected(path, view):
+        scene = rd.load_scene(path)
+        uv = view.screen(view.display(scene.position[-1]))
+        return np.ptp(uv[:, 1]) / np.ptp(uv[:, 0])
+
+    obl = rd.View("oblique")
+    expect = [projected(tilted_h5, rd.View()), projected(tilted_h5, obl),
+              projected(flattened_h5, obl), projected(tilted_h5, rd.View("oblique", 5.0))]
+    np.testing.assert_allclose([aspect(img) for img in (a, b, flat, x5)], expect, rtol=0.03)
+    assert expect[2] < 0.52 < 0.56 < expect[1] < expect[3]
+
+
+@pytest.mark.parametrize("renderer", ["pyvista", "matplotlib"])
+def test_oblique_tips_are_where_the_projection_puts_them(tilted_h5, renderer):
+    """The black tip masses sit at the pixels of (x, y sin 30 + z cos 30): one scale and
+    offset fits all four tips to a pixel, and the pixel there is dark."""
+    skip_without_vtk(renderer)
+    scene = rd.load_scene(tilted_h5)
+    k = scene.n_frames - 1
+    view = rd.View("oblique")
+    box, radius = rd.oblique_box(scene, [k], view)
+    canvas = rd.CANVASES[renderer](scene, SIZE, rd.tension_range(scene, [k]), radius, view, box)
+    try:
+        img = canvas.draw(k)
+        tips = scene.position[k][scene.tips]
+        uv = view.screen(tips)
+        if renderer == "pyvista":
+            ren, px = canvas.plotter.renderer, []
+            for p in tips:
+                ren.SetWorldPoint(*p, 1.0)
+                ren.WorldToDisplay()
+                px.append(ren.GetDisplayPoint()[:2])
+            px = np.array(px)
+        else:
+            px = canvas.ax.transData.transform(uv)
+    finally:
+        canvas.close()
+    rows = img.shape[0] - np.asarray(px[:, 1])  # display y counts from the bottom
+    # the vertical positions on screen follow v = 0.5 y + 0.87 z with the scale of u
+    scale = np.polyfit(uv[:, 0], px[:, 0], 1)[0]
+    fit = np.polyfit(uv[:, 1], px[:, 1], 1)
+    assert math.isclose(fit[0], scale, rel_tol=0.01)
+    assert np.max(np.abs(np.polyval(fit, uv[:, 1]) - px[:, 1])) < 1.0
+    for r, c in zip(rows.round().astype(int), px[:, 0].round().astype(int)):
+        patch = img[max(r - 2, 0):r + 3, max(c - 2, 0):c + 3].astype(int)
+        assert patch.sum(axis=-1).min() < 120, (r, c)  # black tip (cables are lighter)
+
+
+def test_hub_pose_comes_from_the_history(tilted_h5):
+    scene = rd.load_scene(tilted_h5)
+    with h5py.File(tilted_h5) as h5:
+        t, axis = h5["history/time"][()], h5["history/hub_axis"][()]
+        centre = h5["history/hub_position"][()]
+    for k, tk in enumerate(scene.time):
+        j = int(np.argmin(np.abs(t - tk)))
+        np.testing.assert_allclose(scene.hub_rotation[k][:, 2], axis[j], atol=1e-12)
+        np.testing.assert_allclose(scene.hub_centre[k], centre[j], atol=1e-12)
+    np.testing.assert_allclose(np.einsum("kij,kil->kjl", scene.hub_rotation,
+                                         scene.hub_rotation), np.broadcast_to(np.eye(3),
+                                                                              (3, 3, 3)),
+                               atol=1e-12)
+    # without the pose datasets: the turn by the hub angle about +z
+    demo = rd.Scene(scene.time, scene.position, scene.tension, scene.elements, scene.tips,
+                    1.0, np.array([0.0, 0.5, 1.0]), "")
+    np.testing.assert_allclose(demo.hub_rotation[1][:, 0], [math.cos(0.5), math.sin(0.5), 0])
+    np.testing.assert_allclose(demo.hub_centre, 0.0)
+
+
+def test_oblique_animation(tilted_h5, tmp_path):
+    out = tmp_path / "obl.gif"
+    assert main(["render", str(tilted_h5), "-o", str(out), "--size", "480x400", "--view",
+                 "oblique", "--z-scale", "3", "--renderer", "matplotlib"]) == 0
+    im = Image.open(out)
+    assert im.n_frames == 3
+    im.seek(2)
+    assert_picture(np.asarray(im.convert("RGB")))
+
+
+def test_bad_view_arguments_exit_2(tilted_h5, tmp_path, capsys):
+    png_out = str(tmp_path / "a.png")
+    cases = [
+        (["--view", "side"], "invalid choice: 'side'"),
+        (["--view", "oblique", "--z-scale", "0"], "--z-scale"),
+        (["--view", "oblique", "--z-scale", "-2"], "--z-scale"),
+        (["--view", "oblique", "--z-scale", "nan"], "finite number > 0"),
+        (["--view", "oblique", "--z-scale", "inf"], "finite number > 0"),
+        (["--view", "oblique", "--z-scale", "big"], "invalid float value"),
+        (["--z-scale", "10"], "--view oblique"),
+    ]
+    for argv, words in cases:
+        assert main(["render", str(tilted_h5), "-o", png_out, *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(InputError, match="unknown view 'side'"):
+        rd.render(tilted_h5, png_out, view="side")
+    assert not (tmp_path / "a.png").exists()

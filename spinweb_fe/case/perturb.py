@@ -124,7 +124,13 @@ def perturbed(case, model, make_state, field=None):
         model = dataclasses.replace(model, coil=coil._replace(
             level_ref=np.ascontiguousarray(pos[coil.level_nodes])))
     state = make_state(model)
+    moved = pos[web] - state.node_pos[web]
     state.node_pos[web] = pos[web]
+    if case.initial.spin == "all":  # the rigid spin omega e_z x x of the moved positions
+        free_web = state.node_inv_mass[web] > 0
+        idx = np.flatnonzero(web)[free_web]
+        state.node_vel[idx, 0] -= case.initial.omega * moved[free_web, 1]
+        state.node_vel[idx, 1] += case.initial.omega * moved[free_web, 0]
     free = state.node_inv_mass > 0
     state.node_vel[free, 2] += rate[free]
     if tilt_rate:  # the same turn, at tilt_rate

@@ -1,5 +1,6 @@
-"""``spinweb render RESULT.h5 -o FILE.png|FILE.gif|FILE.mp4``: top view of the web, lines
-coloured by tension, hub turned by its angle, tip masses as points (docs/render.md)."""
+"""``spinweb render RESULT.h5 -o FILE.png|FILE.gif|FILE.mp4``: the web seen from above (or
+obliquely, from 30 degrees above its plane), lines coloured by tension, hub turned by its
+angle, tip masses as points (docs/render.md)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,12 @@ def add_parser(sub):
     p.add_argument("--size", default="900x900", metavar="WxH", help="picture size [pixels]")
     p.add_argument("--renderer", choices=("auto", "pyvista", "matplotlib"), default="auto",
                    help="auto: pyvista off-screen, matplotlib if VTK cannot render")
+    p.add_argument("--view", choices=("top", "oblique"), default="top",
+                   help="top: down the spin axis; oblique: from 30 degrees above the x-y "
+                        "plane, from -y (the out-of-plane shape shows)")
+    p.add_argument("--z-scale", type=float, default=1.0, metavar="S",
+                   help="oblique view: draw the out-of-plane coordinate z times S (> 0; "
+                        "said in the title when not 1)")
     return p
 
 
@@ -41,5 +48,6 @@ def run(args) -> int:
     from spinweb_fe.post.render import render
 
     render(args.result, args.output, frame=args.frame, time=args.time, fps=args.fps,
-           size=_size(args.size), renderer=args.renderer)
+           size=_size(args.size), renderer=args.renderer, view=args.view,
+           z_scale=args.z_scale)
     return 0

@@ -30,8 +30,10 @@ def out_of_plane_columns(h) -> dict:
     axis, centre = h["hub_axis"], h["hub_position"]
     height = np.einsum("tkd,td->tk", h["tip_position"] - centre[:, None, :], axis)
     L = h["angular_momentum_vector"]
-    norm = np.maximum(np.linalg.norm(L, axis=1), 1e-300)
-    from_l = np.arccos(np.clip(np.einsum("td,td->t", axis, L) / norm, -1.0, 1.0))
+    norm = np.linalg.norm(L, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # no L (at rest): no angle (NaN)
+        from_l = np.arccos(np.clip(np.einsum("td,td->t", axis, L) / norm, -1.0, 1.0))
+    from_l[norm <= 1e-12 * max(norm.max(), 1e-300)] = np.nan
     tilt = np.arccos(np.clip(axis[:, 2], -1.0, 1.0))
     w = h["hub_angular_velocity"]
     transverse = np.linalg.norm(w - np.einsum("td,td->t", w, axis)[:, None] * axis, axis=1)
@@ -58,9 +60,10 @@ def load_for_plot(path):
     return h, label
 
 
-def _oop_panels(axes, t, cols, label, style):
-    """One file's curves on the out-of-plane panels: the first of each pair solid, the
-    second dashed; every tip on the tip panel."""
+def _oop_panels(axes, t, cols, label, style, color):
+    """One file's curves on the out-of-plane panels, all in the file's ``color`` (unless
+    ``style`` gives one): the first of each pair solid, the second dashed; every tip on the
+    tip panel."""
     for ax, (key, ylab) in zip(axes.flat, OOP_PANELS):
         y = cols[key]
         y = y if y.ndim == 2 else y[:, None]
@@ -68,7 +71,7 @@ def _oop_panels(axes, t, cols, label, style):
             first = j == 0
             ls = "-" if first or key == "tip_height" else "--"
             ax.plot(t, y[:, j], *([style] if style else []), ls=ls, lw=1.0 if first else 0.8,
-                    label=label if first else None)
+                    label=label if first else None, **({} if style else {"color": color}))
         ax.set_ylabel(ylab)
 
 
@@ -92,12 +95,12 @@ def plot_histories(curves, out, title=None, arm=0, t_max=None, panels="arms"):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for h, label, style in curves:
+    for index, (h, label, style) in enumerate(curves):
         t = h["time"]
         sel = t <= (t_max if t_max else t[-1]) + 1e-12
         if panels == "out_of_plane":
             _oop_panels(axes, t[sel], {k: v[sel] for k, v in out_of_plane_columns(h).items()},
-                        label, style)
+                        label, style, f"C{index % 10}")
             continue
         for ax, (key, ylab) in zip(axes.flat, PANELS):
             if key not in h:

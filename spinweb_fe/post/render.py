@@ -1,18 +1,22 @@
-"""Pictures and animations of a result file: top view of the web, lines coloured by tension.
+"""Pictures and animations of a result file: the web seen from above or obliquely, lines
+coloured by tension.
 
 :func:`render` reads the ``/frames`` of a ``results.h5`` and writes one frame as PNG or all
 frames as GIF / MP4. The web is drawn as lines coloured by the element tension [N] (cell
 data, one fixed colour range over the frames drawn, with a colour bar), the hub as a grey
 disc of radius r0 with four spokes turned by the hub angle of that frame (``/history
 hub_angle`` interpolated at the frame time), the corner / tip masses as black points and
-the simulated time in the title. The motion is in the x-y plane: the view looks down the
-spin axis (+z towards the viewer, counter-clockwise positive), in parallel projection.
+the simulated time in the title. The default view looks down the spin axis (+z towards the
+viewer, counter-clockwise positive), in parallel projection; the oblique view
+(:mod:`spinweb_fe.post.view`) looks from 30 degrees above the x-y plane, with the hub in
+its own plane (``/history hub_position`` and ``hub_quaternion`` when the file has them) and
+the out-of-plane coordinate optionally exaggerated for display.
 
-Renderers: pyvista off-screen (VTK; EGL / OSMesa / X), or matplotlib (``LineCollection``)
-when VTK cannot open an off-screen context. Encoders: PNG and GIF through Pillow (a fixed
-256-colour palette for GIF, so the colours do not flicker between frames), MP4 through
-imageio with imageio-ffmpeg (H.264, yuv420p): :mod:`spinweb_fe.encoders`. See
-docs/render.md.
+Renderers (:mod:`spinweb_fe.post.canvas`): pyvista off-screen (VTK; EGL / OSMesa / X), or
+matplotlib (``LineCollection``) when VTK cannot open an off-screen context. Encoders: PNG
+and GIF through Pillow (a fixed 256-colour palette for GIF, so the colours do not flicker
+between frames), MP4 through imageio with imageio-ffmpeg (H.264, yuv420p):
+:mod:`spinweb_fe.io.media`. See docs/render.md.
 """
 
 from __future__ import annotations
@@ -29,16 +33,17 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.io.media import CMAP, WRITERS
+from spinweb_fe.io.media import CMAP, WRITERS  # noqa: F401  (CMAP: the colour map)
 from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.post.canvas import (BACKGROUND, CANVASES, HUB_FACE,  # noqa: F401
+                                    MatplotlibCanvas,
+                                    PyvistaCanvas, hub_geometry, hub_geometry_3d)
+from spinweb_fe.post.view import MARGIN, View, screen_box
 
 log = logging.getLogger(__name__)
 
-BACKGROUND = "white"
-HUB_FACE = (0.82, 0.82, 0.82)
 SUFFIXES = (".png", ".gif", ".mp4")
 RENDERERS = ("auto", "pyvista", "matplotlib")
-MARGIN = 1.12  # view half-width / largest node radius
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,11 @@ class Scene:
         Hub rotation at each frame time (counter-clockwise positive).
     title : str
         The case title.
+    hub_centre : (F, 3) [m]
+        The hub centre at each frame time (``/history hub_position``; else the origin).
+    hub_rotation : (F, 3, 3)
+        The hub's attitude, hub frame -> inertial, at each frame time (``/history
+        hub_quaternion``; else the turn by ``hub_angle`` about +z).
     """
 
     time: np.ndarray
@@ -73,6 +83,15 @@ class Scene:
     hub_radius: float
     hub_angle: np.ndarray
     title: str
+    hub_centre: np.ndarray = None
+    hub_rotation: np.ndarray = None
+
+    def __post_init__(self):
+        n = len(self.time)
+        if self.hub_centre is None:
+            object.__setattr__(self, "hub_centre", np.zeros((n, 3)))
+        if self.hub_rotation is None:
+            object.__setattr__(self, "hub_rotation", turn_about_z(self.hub_angle))
 
     @property
     def n_frames(self) -> int:
@@ -87,6 +106,37 @@ def _case_table(h5) -> dict:
         return tomllib.loads(str(text)) if text else {}
     except tomllib.TOMLDecodeError:
         return {}
+
+
+def turn_about_z(angle) -> np.ndarray:
+    """(F, 3, 3) rotations by ``angle`` (F,) [rad] about +z."""
+    a = np.asarray(angle, dtype=float)
+    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
+                     np.stack([z, z, o], -1)], -2)
+
+
+def quaternion_rotation(q) -> np.ndarray:
+    """(F, 3, 3) rotation matrices of unit quaternions ``q`` (F, 4) = (w, x, y, z)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)],
+        -2)
+
+
+def interp_quaternion(times, t, q) -> np.ndarray:
+    """Unit quaternions at ``times`` from rows (``t``, ``q`` (T, 4)): each component linear
+    in time between neighbouring rows (after a sign flip that keeps them on one side),
+    normalised."""
+    q = np.array(q, dtype=float)
+    flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0))
+    q[1:] *= flip[:, None]
+    out = np.column_stack([np.interp(times, t, q[:, j]) for j in range(4)])
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
 
 
 def load_scene(path) -> Scene:
@@ -120,12 +170,20 @@ def load_scene(path) -> Scene:
         case = _case_table(h5)
         r0 = case.get("hub", {}).get("radius", mesh.attrs.get("hub_radius", 0.0))
         hist = h5.get("history", {})
-        if "time" in hist and "hub_angle" in hist and hist["time"].shape[0] > 0:
+        rows = "time" in hist and hist["time"].shape[0] > 0
+        if rows and "hub_angle" in hist:
             hub_angle = np.interp(times, hist["time"][()], hist["hub_angle"][()])
         else:
             hub_angle = np.zeros(n)
+        centre = rotation = None
+        if rows and "hub_quaternion" in hist and "hub_position" in hist:
+            th = hist["time"][()]
+            pos = hist["hub_position"][()]
+            centre = np.column_stack([np.interp(times, th, pos[:, j]) for j in range(3)])
+            rotation = quaternion_rotation(interp_quaternion(times, th,
+                                                             hist["hub_quaternion"][()]))
     return Scene(times, position, tension, elements, tips, float(r0), hub_angle,
-                 str(case.get("title", "")))
+                 str(case.get("title", "")), centre, rotation)
 
 
 def pick_frame(scene: Scene, frame=None, time=None) -> int:
@@ -146,188 +204,30 @@ def pick_frame(scene: Scene, frame=None, time=None) -> int:
     return n - 1
 
 
-def hub_geometry(radius: float, angle: float, n_rim: int = 120):
-    """Hub outline in the x-y plane.
-
-    Returns
-    -------
-    rim : (n_rim + 1, 2) [m]
-        Closed circle of radius ``radius``.
-    spokes : (4, 2, 2) [m]
-        Four spokes from the centre to the rim, the first at ``angle`` [rad].
-    """
-    a = np.linspace(0.0, 2.0 * math.pi, n_rim + 1)
-    rim = radius * np.column_stack([np.cos(a), np.sin(a)])
-    b = angle + 0.5 * math.pi * np.arange(4)
-    ends = radius * np.column_stack([np.cos(b), np.sin(b)])
-    spokes = np.stack([np.zeros_like(ends), ends], axis=1)
-    return rim, spokes
-
-
 def view_radius(scene: Scene, frames) -> float:
-    """Half-width [m] of a view that holds the web of all ``frames`` and the hub."""
+    """Half-width [m] of a top view that holds the web of all ``frames`` and the hub."""
     xy = scene.position[list(frames), :, :2]
     r = float(np.max(np.hypot(xy[..., 0], xy[..., 1]))) if xy.size else 0.0
     return MARGIN * max(r, scene.hub_radius, 1e-9)
+
+
+def oblique_box(scene: Scene, frames, view: View):
+    """(centre (2,), half-size (2,)) [m]: the picture box of the oblique ``view`` that holds
+    the web and the hub rim of all ``frames`` (display coordinates, with the margin), and the
+    largest distance [m] of a displayed point from the origin (the depth scale)."""
+    pts = [view.display(scene.position[list(frames)]).reshape(-1, 3)]
+    if scene.hub_radius > 0:
+        pts += [hub_geometry_3d(scene, k, view, n_rim=24)[1] for k in frames]
+    pts = np.vstack(pts)
+    centre, half = screen_box(view, pts)
+    return (centre, half), MARGIN * max(float(np.max(np.linalg.norm(pts, axis=1))),
+                                        scene.hub_radius, 1e-9)
 
 
 def tension_range(scene: Scene, frames) -> tuple[float, float]:
     """Colour range (0, largest tension of ``frames``) [N] (0, 1 if all slack)."""
     tmax = float(np.max(scene.tension[list(frames)])) if scene.tension.size else 0.0
     return 0.0, tmax if tmax > 0 else 1.0
-
-
-def _title(scene, k, width=120):
-    """Case title (cut to ``width`` characters) over the time of frame ``k``."""
-    title = scene.title if len(scene.title) <= width else scene.title[:width - 3] + "..."
-    head = f"{title}\n" if title else ""
-    return f"{head}t = {scene.time[k]:.3f} s   (frame {k} of {scene.n_frames - 1})"
-
-
-class PyvistaCanvas:
-    """Off-screen VTK picture of one scene; :meth:`draw` updates the actors in place."""
-
-    name = "pyvista"
-
-    def __init__(self, scene: Scene, size, clim, radius):
-        import pyvista as pv
-
-        pv.OFF_SCREEN = True
-        self.scene = scene
-        self.pv = pv
-        s = scene
-        lines = np.column_stack([np.full(len(s.elements), 2), s.elements]).ravel()
-        self.web = pv.PolyData(np.array(s.position[0], dtype=float), lines=lines)
-        self.web.cell_data["tension"] = np.asarray(s.tension[0], dtype=float)
-        self.plotter = p = pv.Plotter(off_screen=True, window_size=list(size))
-        p.set_background(BACKGROUND)
-        eps = 1e-3 * radius
-        if s.hub_radius > 0:
-            disc = pv.Disc(center=(0, 0, -eps), inner=0.0, outer=s.hub_radius, c_res=120)
-            p.add_mesh(disc, color=HUB_FACE, lighting=False)
-            rim, _ = hub_geometry(s.hub_radius, 0.0)
-            p.add_mesh(pv.lines_from_points(np.column_stack([rim, np.zeros(len(rim))])),
-                       color="black", line_width=2, lighting=False)
-            self.spokes = pv.PolyData(np.zeros((8, 3)),
-                                      lines=np.array([[2, 2 * i, 2 * i + 1] for i in range(4)]))
-            p.add_mesh(self.spokes, color="black", line_width=3, lighting=False)
-        else:
-            self.spokes = None
-        self.font = max(6, round(11 * min(size) / 900))  # text scales with the picture
-        p.add_mesh(self.web, scalars="tension", cmap=CMAP, clim=list(clim), line_width=2,
-                   lighting=False, scalar_bar_args={
-                       "title": "tension [N]", "color": "black", "vertical": True,
-                       "position_x": 0.83, "position_y": 0.1, "height": 0.72, "width": 0.05,
-                       "fmt": "%.3g", "n_labels": 6, "title_font_size": 2 * self.font,
-                       "label_font_size": round(1.7 * self.font)})
-        self.tips = None
-        if len(s.tips):
-            self.tips = pv.PolyData(np.array(s.position[0][s.tips], dtype=float))
-            p.add_mesh(self.tips, color="black", point_size=10,
-                       render_points_as_spheres=True)
-        p.view_xy()
-        p.enable_parallel_projection()
-        w, h = size
-        aspect = w / h
-        # the colour bar takes the right 20 % of the window and the title the top 12 %:
-        # fit the disc of radius `radius` into what is left, centred there
-        scale = radius * max(1.0 / (0.8 * aspect), 1.0 / 0.86)
-        fx, fy = 0.2 * scale * aspect, 0.1 * scale
-        cam = p.camera
-        cam.focal_point = (fx, fy, 0.0)
-        cam.position = (fx, fy, 10.0 * radius)
-        cam.up = (0.0, 1.0, 0.0)
-        cam.parallel_scale = scale
-        self.size = size
-
-    def draw(self, k: int) -> np.ndarray:
-        """Frame ``k`` as an (H, W, 3) uint8 image."""
-        s = self.scene
-        self.web.points = np.array(s.position[k], dtype=float)
-        self.web.cell_data["tension"] = np.asarray(s.tension[k], dtype=float)
-        if self.spokes is not None:
-            _, spokes = hub_geometry(s.hub_radius, float(s.hub_angle[k]))
-            pts = np.zeros((8, 3))
-            pts[:, :2] = spokes.reshape(8, 2)
-            self.spokes.points = pts
-        if self.tips is not None:
-            self.tips.points = np.array(s.position[k][s.tips], dtype=float)
-        self.plotter.add_text(_title(s, k, self.size[0] // self.font), position="upper_edge",
-                              font_size=self.font, color="black", name="title")
-        self.plotter.renderer.ResetCameraClippingRange()
-        self.plotter.render()
-        return np.asarray(self.plotter.screenshot(return_img=True))[..., :3]
-
-    def describe(self) -> str:
-        return f"pyvista {self.pv.__version__} ({self.plotter.ren_win.GetClassName()})"
-
-    def close(self):
-        self.plotter.close()
-
-
-class MatplotlibCanvas:
-    """The same picture with matplotlib (Agg): no OpenGL needed."""
-
-    name = "matplotlib"
-
-    def __init__(self, scene: Scene, size, clim, radius):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        from matplotlib.collections import LineCollection
-        from matplotlib.colors import Normalize
-
-        self.scene = s = scene
-        self.plt = plt
-        dpi = 100
-        self.fig, ax = plt.subplots(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi,
-                                    layout="constrained")
-        self.ax = ax
-        self.web = LineCollection(self._segments(0), cmap=CMAP, norm=Normalize(*clim),
-                                  linewidths=1.2, zorder=2)
-        self.web.set_array(np.asarray(s.tension[0], dtype=float))
-        ax.add_collection(self.web)
-        self.spokes = None
-        if s.hub_radius > 0:
-            ax.add_patch(plt.Circle((0, 0), s.hub_radius, facecolor=HUB_FACE,
-                                    edgecolor="black", lw=1.5, zorder=1))
-            self.spokes = LineCollection([], colors="black", linewidths=2.0, zorder=1.5)
-            ax.add_collection(self.spokes)
-        self.tips = ax.scatter([], [], s=18, c="black", zorder=3)
-        self.fig.colorbar(self.web, ax=ax, label="tension [N]", shrink=0.8)
-        ax.set_xlim(-radius, radius)
-        ax.set_ylim(-radius, radius)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        self.size = size
-
-    def _segments(self, k):
-        return self.scene.position[k][self.scene.elements][:, :, :2]
-
-    def draw(self, k: int) -> np.ndarray:
-        """Frame ``k`` as an (H, W, 3) uint8 image."""
-        s = self.scene
-        self.web.set_segments(self._segments(k))
-        self.web.set_array(np.asarray(s.tension[k], dtype=float))
-        if self.spokes is not None:
-            self.spokes.set_segments(hub_geometry(s.hub_radius, float(s.hub_angle[k]))[1])
-        self.tips.set_offsets(s.position[k][s.tips, :2] if len(s.tips) else np.zeros((0, 2)))
-        self.ax.set_title(_title(s, k), fontsize=10)
-        self.fig.canvas.draw()
-        return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
-
-    def describe(self) -> str:
-        import matplotlib
-
-        return f"matplotlib {matplotlib.__version__} (Agg)"
-
-    def close(self):
-        self.plt.close(self.fig)
-
-
-CANVASES = {"pyvista": PyvistaCanvas, "matplotlib": MatplotlibCanvas}
 
 
 _PROBE = """
@@ -370,7 +270,7 @@ def pyvista_works() -> tuple[bool, str]:
     return probe_pyvista()
 
 
-def _open_canvas(renderer, scene, size, clim, radius, first):
+def _open_canvas(renderer, scene, size, clim, radius, first, view=None, box=None):
     """The canvas and the image of frame ``first``; 'auto' falls back to matplotlib."""
     if renderer not in RENDERERS:
         raise InputError("--renderer", "", f"unknown renderer '{renderer}' "
@@ -383,7 +283,7 @@ def _open_canvas(renderer, scene, size, clim, radius, first):
     if renderer in ("auto", "pyvista"):
         canvas = None
         try:
-            canvas = PyvistaCanvas(scene, size, clim, radius)
+            canvas = PyvistaCanvas(scene, size, clim, radius, view, box)
             return canvas, canvas.draw(first)
         except Exception as exc:  # no OpenGL context (or no VTK): fall back
             if canvas is not None:
@@ -393,12 +293,12 @@ def _open_canvas(renderer, scene, size, clim, radius, first):
                 raise RunError(f"pyvista cannot render off-screen: {exc}") from None
             log.warning("pyvista cannot render off-screen (%s); using matplotlib",
                         str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
-    canvas = MatplotlibCanvas(scene, size, clim, radius)
+    canvas = MatplotlibCanvas(scene, size, clim, radius, view, box)
     return canvas, canvas.draw(first)
 
 
 def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
-           renderer="auto") -> dict:
+           renderer="auto", view="top", z_scale=1.0) -> dict:
     """Draw a result file into a PNG (one frame) or a GIF / MP4 (all frames).
 
     Parameters
@@ -417,6 +317,11 @@ def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
         Picture width and height [pixels].
     renderer : {'auto', 'pyvista', 'matplotlib'}
         'auto' uses pyvista and falls back to matplotlib if VTK cannot render off-screen.
+    view : {'top', 'oblique'}
+        Looking down the spin axis, or from 30 degrees above the x-y plane
+        (:mod:`spinweb_fe.post.view`).
+    z_scale : float > 0
+        Oblique view: the out-of-plane coordinate times this, for display (1: true shape).
 
     Returns
     -------
@@ -433,6 +338,7 @@ def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
                          "draws every frame")
     if not (fps > 0 and math.isfinite(fps)):
         raise InputError("--fps", "", f"must be > 0, got {fps}")
+    camera = View(view, z_scale)
     w, h = (int(v) for v in size)
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
         raise InputError("--size", "", f"{w}x{h} pixels: each side must be 16 .. 8192")
@@ -442,8 +348,13 @@ def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
     writer = WRITERS[suffix](out, fps)
     quiet = _vtk_quiet() if renderer != "matplotlib" else contextlib.nullcontext()
     with quiet:
-        clim, radius = tension_range(scene, frames), view_radius(scene, frames)
-        canvas, img = _open_canvas(renderer, scene, (w, h), clim, radius, frames[0])
+        clim, box = tension_range(scene, frames), None
+        if camera.oblique:
+            box, radius = oblique_box(scene, frames, camera)
+        else:
+            radius = view_radius(scene, frames)
+        canvas, img = _open_canvas(renderer, scene, (w, h), clim, radius, frames[0], camera,
+                                   box)
         try:
             writer.append(img)
             for k in frames[1:]:
