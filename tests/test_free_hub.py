@@ -177,6 +177,8 @@ def test_tether_on_a_steady_hub_librates_at_the_pendulum_frequencies():
     assert scene.state.node_vel[scene.mesh.node_sets["tips"][0], 2] == pytest.approx(0.01)
     h = simulate(scene.model, scene.control, scene.state, 2e-3, Schedule(60.0, 2e-3)).history
     t, tip = h["time"], h["tip_position"][:, 0]
+    K = h["angular_momentum_vector"]  # its z part is the scalar history's (hub included)
+    assert np.allclose(K[:, 2], h["angular_momentum"], rtol=1e-12, atol=0)
     swing = np.unwrap(np.arctan2(tip[:, 1], tip[:, 0])) - h["hub_angle"]
     assert crossing_frequency(t, swing) == pytest.approx(W * math.sqrt(r0 / L), rel=1e-2)
     assert crossing_frequency(t, tip[:, 2]) == pytest.approx(W * math.sqrt(1 + r0 / L),

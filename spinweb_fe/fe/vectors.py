@@ -63,26 +63,27 @@ def plane_stats(pos, model_inv_mass, centre, axis, row):
 
 
 @njit(cache=True)
+def _add_spin(i, mass, pos, acc):
+    """acc += m_i (-y, x, z x, z y) of node i (the sums of :func:`fixed_hub_row`)."""
+    m = mass[i]
+    acc[0] -= m * pos[i, 1]
+    acc[1] += m * pos[i, 0]
+    acc[2] += m * pos[i, 2] * pos[i, 0]
+    acc[3] += m * pos[i, 2] * pos[i, 1]
+
+
+@njit(cache=True)
 def fixed_hub_row(hub, coil, cs, nodes, pos, theta, w, j_eff, row):
     """The fixed-axis hub's part of a row: the tied and held nodes (model masses) turning at
     w about z, the hub's own spin, and its pose (at the origin, axis +z, angle theta)."""
-    px = py = sx = sy = 0.0
+    acc = np.zeros(4)  # sum m (-y, x, z x, z y) over the tied and held nodes
     for k in range(hub.tied_idx.shape[0]):
-        i = hub.tied_idx[k]
-        m = nodes.mass[i]
-        px -= m * pos[i, 1]
-        py += m * pos[i, 0]
-        sx += m * pos[i, 2] * pos[i, 0]
-        sy += m * pos[i, 2] * pos[i, 1]
+        _add_spin(hub.tied_idx[k], nodes.mass, pos, acc)
     for k in range(coil.arm_ptr.shape[0] - 1):
         for p in range(coil.level_ptr[coil.arm_ptr[k] + cs.front[k]],
                        coil.level_ptr[coil.arm_ptr[k + 1]]):
-            i = coil.level_nodes[p]
-            m = nodes.mass[i]
-            px -= m * pos[i, 1]
-            py += m * pos[i, 0]
-            sx += m * pos[i, 2] * pos[i, 0]
-            sy += m * pos[i, 2] * pos[i, 1]
+            _add_spin(coil.level_nodes[p], nodes.mass, pos, acc)
+    px, py, sx, sy = acc[0], acc[1], acc[2], acc[3]
     row[0] += w * px  # sum m w z x x
     row[1] += w * py
     row[3] -= w * sx  # sum m x x (w z x x) = w sum m ((x^2 + y^2) z - z (x, y, 0))
