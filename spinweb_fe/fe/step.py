@@ -74,9 +74,11 @@ class Recording(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy")
-def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension):
-    """Hot loop: tension-only element forces of elements lo..hi-1 added into ``force`` (n,3);
-    element tensions written into ``tension`` unless it is empty.
+def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension, elist=None):
+    """Hot loop: tension-only element forces of elements lo..hi-1 (or of elist[lo:hi], an
+    element list) added into ``force`` (n,3); element tensions written into ``tension``
+    unless it is empty (the list is decided by numba from its type: without it the loop is
+    the plain one).
 
     1/L0 is stored, and the tension-only rule is a branch-free max on the strain (a web
     spinning unstretched sits on the slack/taut kink, where a real branch is mispredicted
@@ -93,7 +95,11 @@ def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension):
     tmax = 0.0
     pdamp = 0.0
     write_tension = tension.shape[0] > 0
-    for e in range(lo, hi):
+    for k in range(lo, hi):
+        if elist is None:
+            e = k
+        else:
+            e = elist[k]
         i = elem_nodes[e, 0]
         j = elem_nodes[e, 1]
         dx = pos[j, 0] - pos[i, 0]
@@ -138,12 +144,13 @@ def eval_elements(elems, pos, vel, force, tension, want_energy):
 
 
 @njit(cache=True, parallel=True)
-def accumulate_threads(elems, pos, vel, forces, bounds, record, out):
-    """Element pass on several threads: chunk c (elements bounds[c]..bounds[c+1]-1) adds into
-    its own buffer forces[c]; out[c] = (strain energy, max tension, damping power)."""
+def accumulate_threads(elems, pos, vel, forces, bounds, record, out, elist):
+    """Element pass on several threads: chunk c (elements bounds[c]..bounds[c+1]-1, or
+    elist[bounds[c]:bounds[c+1]] with an element list) adds into its own buffer forces[c];
+    out[c] = (strain energy, max tension, damping power)."""
     for c in prange(forces.shape[0]):
         se, tm, pd = accumulate_elements(elems, pos, vel, forces[c], bounds[c], bounds[c + 1],
-                                         record, np.empty(0))
+                                         record, np.empty(0), elist)
         out[c, 0] = se
         out[c, 1] = tm
         out[c, 2] = pd
@@ -216,17 +223,23 @@ def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, r
 @njit(cache=True, parallel=True)
 def integrate_threads(nodes, hub, mv, forces, omega, dw_force, j_eff, dt, nbounds, record, out):
     """Node pass on several threads (frictionless contact only: friction turns the hub node by
-    node). Block b sums the thread buffers into forces[0] for its nodes, then integrates them;
-    out[b] = (ke0, ke1, lz0, lz1, contact dissipation)."""
-    for b in prange(nbounds.shape[0] - 1):
-        lo = nbounds[b]
-        hi = nbounds[b + 1]
-        for c in range(1, forces.shape[0]):
-            for i in range(lo, hi):
+    node). ``nbounds`` (3, nt + 1): row 0 the node blocks (one per buffer), rows 1 and 2 the
+    range of nodes [lo, hi) where buffer c can hold forces (fe.threads). Block b
+    adds the other buffers into its own buffer b for its nodes, within those ranges
+    (elsewhere they are zero), then integrates its nodes from buffer b; out[b] = (ke0, ke1,
+    lz0, lz1, contact dissipation). With two buffers the sums are those of a fold into
+    buffer 0 (a + b = b + a)."""
+    for b in prange(nbounds.shape[1] - 1):
+        lo = nbounds[0, b]
+        hi = nbounds[0, b + 1]
+        for c in range(forces.shape[0]):
+            if c == b:
+                continue
+            for i in range(max(lo, nbounds[1, c]), min(hi, nbounds[2, c])):
                 for d in range(3):
-                    forces[0, i, d] += forces[c, i, d]
+                    forces[b, i, d] += forces[c, i, d]
                     forces[c, i, d] = 0.0
-        _, diss = integrate_nodes(nodes, hub, mv, forces[0], omega, dw_force, j_eff, dt, lo, hi,
+        _, diss = integrate_nodes(nodes, hub, mv, forces[b], omega, dw_force, j_eff, dt, lo, hi,
                                   record, out[b])
         out[b, 4] = diss
 
@@ -241,7 +254,8 @@ def split(n, parts):
 
 
 @njit(cache=True)
-def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no_tension, dt):
+def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no_tension, dt,
+                 lists=None):
     """Element forces of this step into the force buffers: one thread (force (1, n, 3)) or
     several (one buffer per thread, ``ebounds`` their element ranges). A scene with a failure
     strain takes the strength pass (fe.rupture; ``ss`` its state, ``eout`` (nt, 8), ``dt``
@@ -257,7 +271,10 @@ def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no
     if ebounds is None or force.shape[0] == 1:
         return accumulate_elements(elems, pos, vel, force[0], 0, elems.nodes.shape[0], record,
                                    no_tension)
-    accumulate_threads(elems, pos, vel, force, ebounds, record, eout)
+    if lists is None:
+        accumulate_threads(elems, pos, vel, force, ebounds, record, eout, None)
+    else:  # the elements grouped by node block (fe.threads)
+        accumulate_threads(elems, pos, vel, force, lists[0], record, eout, lists[1])
     return eout[:, 0].sum(), eout[:, 1].max(), eout[:, 2].sum()
 
 
@@ -355,7 +372,8 @@ def coil_step(coil, elems, nodes, state, t_next):
 
 
 @njit(cache=True)
-def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, nbounds=None):
+def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, nbounds=None,
+            lists=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
     ``model`` is the kernel view of the Model (``Model.kernel``). ``force`` (nt, n, 3) holds
@@ -365,10 +383,10 @@ def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, n
     arm data of :func:`record_arms`, and ``vec`` (rows, fe.vectors.VEC_WIDTH), if given, the
     momentum vectors, the hub's pose and the distances from the hub plane (a run that can
     leave the plane; without it numba compiles none of that). Several threads (nt > 1) need
-    ``ebounds`` and ``nbounds``, the element and node ranges of each (:func:`split`); without
-    them (one thread) numba compiles no thread kernel. Threads give the same result for a
-    given thread count (fixed chunks, fixed reduction order). Returns (status, rows): 0 ok,
-    1 non-finite.
+    ``ebounds``, ``nbounds`` and ``lists``, the element and node ranges of each
+    (fe.threads.thread_ranges); without them (one thread) numba compiles no thread kernel.
+    Threads give the same result for a given thread count (fixed chunks, fixed reduction
+    order). Returns (status, rows): 0 ok, 1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
@@ -390,7 +408,7 @@ def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, n
         record = step % rec.every == 0
         t = step * dt
         se, tmax, pdamp = element_pass(elems, strength, state.strength, pos, vel, force,
-                                       ebounds, eout, record, no_tension, dt)
+                                       ebounds, eout, record, no_tension, dt, lists)
         tau = moment_of(pos, force, hub.tied_idx)
         if has_coil:
             tau += held_moment(coil, state.coil, pos, force)

@@ -17,6 +17,7 @@ from spinweb_fe.fe import free_step, step
 from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.state import State
+from spinweb_fe.fe.threads import thread_ranges
 from spinweb_fe.fe.vectors import VEC_WIDTH
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
@@ -124,8 +125,9 @@ class _Chunks:
         self.args = (model.kernel, control.kernel)
         self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
         # the thread ranges; None on one thread, so that numba compiles no thread kernel
-        self.bounds = (None, None) if threads == 1 else (
-            step.split(model.n_elems, threads), step.split(model.n_nodes, threads))
+        self.bounds = (None, None, None) if threads == 1 else thread_ranges(
+            model.elements.nodes, model.n_nodes, threads, not len(model.strength.fail),
+            model.coil.bundle_code > 0)
         rows = ROWS_PER_CHUNK + 1
         n_probes = len(tracker.probes)
         self.rec = step.Recording(rec_every, tracker.probes,
