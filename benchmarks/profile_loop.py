@@ -41,6 +41,7 @@ from throughput import load_average, machine, spinning_web
 
 from spinweb_fe.fe import step as kernels
 from spinweb_fe.fe.control import free
+from spinweb_fe.fe.threads import thread_ranges
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -111,25 +112,32 @@ def loop_threads(model, state, nt, steps=300):
     dt = 0.9 * model.dt_critical
     inv_rest = 1.0 / model.elements.rest_len
 
+    control = free()
+    ranges = thread_ranges(model.elements.nodes, n, nt, True) if nt > 1 else (None,) * 3
+    kern_model = model.kernel
+
     def adv(k):
         st = state.copy()
         pp = np.zeros((2, 0, 3))
         rec = kernels.Recording(10**9, np.zeros(0, np.int64),
-                                np.zeros((2, len(kernels.REC_COLUMNS))), pp, pp.copy())
+                                np.zeros((2, len(kernels.REC_COLUMNS))), pp, pp.copy(),
+                                np.zeros((2, 0, 5)), np.zeros((2, 0)))
         t0 = time.perf_counter()
-        kernels.advance(model.elements, model.nodes, model.hub, free().kernel, st,
-                        np.zeros((nt, n, 3)), rec, dt, k)
+        kernels.advance(kern_model, control.kernel, st, np.zeros((nt, n, 3)), rec, dt, k,
+                        None, *ranges)
         return time.perf_counter() - t0
 
     def kern(k):
-        pos, vel = state.node_pos.copy(), state.node_vel.copy()
+        st = state.copy()
+        mv = kernels.NodeMotion(st.node_pos, st.node_vel, st.node_mass, st.node_inv_mass)
         forces = np.zeros((nt, n, 3))
-        eb, nb = kernels.split(m, nt), kernels.split(n, nt)
+        eb, nb, lists = thread_ranges(model.elements.nodes, n, nt, True)
         eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
         t0 = time.perf_counter()
         for _ in range(k):
-            kernels.accumulate_threads(model.elements, pos, vel, forces, eb, False, eo)
-            kernels.integrate_threads(model.nodes, model.hub, pos, vel, forces, 0.0, 0.0, dt, nb,
+            kernels.accumulate_threads(model.elements, mv.pos, mv.vel, forces, lists[0], False,
+                                       eo, lists[1])
+            kernels.integrate_threads(model.nodes, model.hub, mv, forces, 0.0, 0.0, 1.0, dt, nb,
                                       False, no)
         return time.perf_counter() - t0
 
@@ -181,6 +189,7 @@ def main(argv=None):
     perm = np.random.default_rng(0).permutation(m)
     en_rand = np.ascontiguousarray(en[perm])
     out4 = np.zeros(5)
+    motion = kernels.NodeMotion(pos, vel, state.node_mass, state.node_inv_mass)
     tmp = np.zeros(m)
     no_t = np.zeros(0)  # no tension output (as in the step loop)
     dt = 1e-9  # tiny: the state hardly changes between repetitions
@@ -199,7 +208,7 @@ def main(argv=None):
                                                                     force),
         "node pass (reference)": lambda: node_pass(pos, vel, force, model.nodes.inv_mass, dt),
         "node pass (production)": lambda: kernels.integrate_nodes(
-            model.nodes, model.hub, pos, vel, force, 0.0, 0.0, dt, 0, n, False, out4),
+            model.nodes, model.hub, motion, force, 0.0, 0.0, 1.0, dt, 0, n, False, out4),
     }
     rows = {}
     for _ in range(args.rounds):  # rounds interleave the parts; the fastest round is kept
@@ -215,13 +224,16 @@ def main(argv=None):
     for nt in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
         numba.set_num_threads(nt)
         forces = np.zeros((nt, n, 3))
-        eb, nb = kernels.split(m, nt), kernels.split(n, nt)
+        eb, nb, lists = thread_ranges(model.elements.nodes, n, nt, True)
         eo, no = np.zeros((nt, 3)), np.zeros((nt, 5))
-        def elem_pass(forces=forces, eb=eb, eo=eo):
-            kernels.accumulate_threads(model.elements, pos, vel, forces, eb, False, eo)
+        mv = kernels.NodeMotion(pos, vel, state.node_mass, state.node_inv_mass)
 
-        def node_pass_t(forces=forces, nb=nb, no=no):
-            kernels.integrate_threads(model.nodes, model.hub, pos, vel, forces, 0.0, 0.0, dt, nb,
+        def elem_pass(forces=forces, lists=lists, eo=eo):
+            kernels.accumulate_threads(model.elements, pos, vel, forces, lists[0], False, eo,
+                                       lists[1])
+
+        def node_pass_t(forces=forces, nb=nb, no=no, mv=mv):
+            kernels.integrate_threads(model.nodes, model.hub, mv, forces, 0.0, 0.0, 1.0, dt, nb,
                                       False, no)
 
         e_s = min(best_of(elem_pass, args.repeat) for _ in range(args.rounds))
