@@ -33,6 +33,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from spinweb_fe.fe.law import add_pair, damped_tension, lengthening, stretch
+
 #: columns of the per-row strength table (``Recording.strength_table``): peak utilisation [-],
 #: its strain [-], its element, broken elements so far, rupture dissipation so far [J]
 STRENGTH_COLUMNS = ("utilisation", "max_strain", "max_strain_element", "broken_elements",
@@ -133,12 +135,7 @@ def accumulate_strength(elems, strength, broken, pos, vel, force, lo, hi, record
             continue
         i = elem_nodes[e, 0]
         j = elem_nodes[e, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
-        inv = 1.0 / ln
-        strain = max(ln * inv_rest[e] - 1.0, 0.0)  # tension only: N = EA max(eps, 0)
+        dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
         u = strain * inv_fail[e]  # utilisation eps / eps_f
         if u > upeak:
             upeak = u
@@ -148,34 +145,22 @@ def accumulate_strength(elems, strength, broken, pos, vel, force, lo, hi, record
         if rupture and strain > fail[e]:  # the break at x_n: U - dt N dL/dt / 2 dissipated
             broken[e] = True
             nbreak += 1
-            ldot = inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
-                          + dz * (vel[j, 2] - vel[i, 2]))
+            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
             released += 0.5 * n_el * strain / inv_rest[e] - 0.5 * dt * n_el * ldot
             if write_tension:
                 tension[e] = 0.0
             continue
         n_tot = n_el
         if damped:  # N_d = c dL/dt while taut, total tension never negative
-            ldot = inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
-                          + dz * (vel[j, 2] - vel[i, 2]))
-            taut = 1.0 if strain > 0.0 else 0.0
-            n_tot = max(n_el + taut * cdamp[e] * ldot, 0.0)
+            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
+            n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
             pdamp += (n_tot - n_el) * ldot
         if record:
             se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
             tmax = max(tmax, n_tot)
         if write_tension:
             tension[e] = n_tot
-        c = n_tot * inv
-        fx = c * dx
-        fy = c * dy
-        fz = c * dz
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
+        add_pair(force, i, j, n_tot * inv, dx, dy, dz)
     return se, tmax, pdamp, upeak, speak, epeak, released, nbreak
 
 

@@ -33,6 +33,7 @@ from spinweb_fe.fe.coil import (front_row, gather_bundles, held_moment, open_bun
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
+from spinweb_fe.fe.law import add_pair, damped_tension, lengthening, stretch
 from spinweb_fe.fe.rupture import record_strength, strength_pass
 from spinweb_fe.fe.vectors import fixed_hub_row, node_momenta, plane_stats
 
@@ -102,35 +103,19 @@ def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension, elist=N
             e = elist[k]
         i = elem_nodes[e, 0]
         j = elem_nodes[e, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
-        inv = 1.0 / ln
-        strain = max(ln * inv_rest[e] - 1.0, 0.0)  # tension only: N = EA max(eps, 0)
+        dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
         n_el = ea[e] * strain
         n_tot = n_el
         if damped:  # N_d = c dL/dt while taut, total tension never negative
-            ldot = inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
-                          + dz * (vel[j, 2] - vel[i, 2]))
-            taut = 1.0 if strain > 0.0 else 0.0
-            n_tot = max(n_el + taut * cdamp[e] * ldot, 0.0)
+            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
+            n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
             pdamp += (n_tot - n_el) * ldot
         if record:
             se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
             tmax = max(tmax, n_tot)
         if write_tension:
             tension[e] = n_tot
-        c = n_tot * inv
-        fx = c * dx
-        fy = c * dy
-        fz = c * dz
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
+        add_pair(force, i, j, n_tot * inv, dx, dy, dz)
     return se, tmax, pdamp
 
 

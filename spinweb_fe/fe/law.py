@@ -1,0 +1,48 @@
+"""The cable element law, one piece per stage, shared by the element loops of fe.step (plain)
+and fe.rupture (with the strength check). Inlined into the loops at numba IR level
+(``inline="always"``), so a loop is the code it would be written out by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(inline="always")
+def stretch(pos, i, j, inv_rest_e):
+    """(dx, dy, dz, 1/L, strain) of the element i -> j: the tension-only strain
+    max(L/L0 - 1, 0) as a branch-free max; a zero length gets 1e-300 under the root."""
+    dx = pos[j, 0] - pos[i, 0]
+    dy = pos[j, 1] - pos[i, 1]
+    dz = pos[j, 2] - pos[i, 2]
+    ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
+    inv = 1.0 / ln
+    return dx, dy, dz, inv, max(ln * inv_rest_e - 1.0, 0.0)
+
+
+@njit(inline="always")
+def lengthening(vel, i, j, dx, dy, dz, inv):
+    """dL/dt [m/s] of the element i -> j."""
+    return inv * (dx * (vel[j, 0] - vel[i, 0]) + dy * (vel[j, 1] - vel[i, 1])
+                  + dz * (vel[j, 2] - vel[i, 2]))
+
+
+@njit(inline="always")
+def damped_tension(n_el, strain, cdamp_e, ldot):
+    """N_el + c dL/dt while taut, never negative [N]."""
+    taut = 1.0 if strain > 0.0 else 0.0
+    return max(n_el + taut * cdamp_e * ldot, 0.0)
+
+
+@njit(inline="always")
+def add_pair(force, i, j, c, dx, dy, dz):
+    """force[i] += c (dx, dy, dz), force[j] -= the same."""
+    fx = c * dx
+    fy = c * dy
+    fz = c * dz
+    force[i, 0] += fx
+    force[i, 1] += fy
+    force[i, 2] += fz
+    force[j, 0] -= fx
+    force[j, 1] -= fy
+    force[j, 2] -= fz
