@@ -157,8 +157,9 @@ def integrate_free(nodes, hub, mv, force, env, t, hull, rs, R, V, Pi, Fb, Tb, dt
 
 @njit(cache=True)
 def body_kick(model, law, state, pos, force, t, dt, R):
-    """The body's loads and control at step n: (F, T + M b3, M [N m], omega_3 before,
-    V_{n+1/2}, Pi_{n+1/2}, tidal force, tidal torque); V and Pi before contact."""
+    """The body's loads and control at step n: (F, T + M b3, M [N m], omega before, its
+    component omega_3 about b3, V_{n+1/2}, Pi_{n+1/2}, tidal force, tidal torque); V and
+    Pi before contact."""
     hub, coil, body, env = model.hub, model.coil, model.body, model.env
     rs = state.rigid
     F, T = body_loads(hub, coil, state.coil, rs, pos, force)
@@ -169,7 +170,8 @@ def body_kick(model, law, state, pos, force, t, dt, R):
         F += Fg
         T += Tg
     b3 = R[:, 2].copy()
-    w3_old = dot(b3, inv_inertia(rs, R, rs.momentum))
+    w_old = inv_inertia(rs, R, rs.momentum)
+    w3_old = dot(b3, w_old)
     prescribed, value = eval_control(law, t, w3_old)
     Pi = rs.momentum + dt * T
     torque = value
@@ -179,7 +181,7 @@ def body_kick(model, law, state, pos, force, t, dt, R):
                   / (dt * dot(b3, inv_inertia(rs, R, b3))))
     Pi += dt * torque * b3
     V = rs.velocity + dt * F / rs.mass[0]
-    return F, T + torque * b3, torque, w3_old, V, Pi, Fg, Tg
+    return F, T + torque * b3, torque, w_old, w3_old, V, Pi, Fg, Tg
 
 
 @njit(cache=True)
@@ -288,9 +290,8 @@ def advance_free(model, law, state, force, rec, vec, dt, nsteps, ebounds=None):
         if has_coil:
             gather_bundles(coil, state.coil, force)
         R = rotation(rs.quaternion)
-        Fb, Tb, torque, w3_old, V, Pi, Fg, Tg = body_kick(model, law, state, pos, force[0],
-                                                          t, dt, R)
-        w_old = inv_inertia(rs, R, rs.momentum)
+        Fb, Tb, torque, w_old, w3_old, V, Pi, Fg, Tg = body_kick(model, law, state, pos,
+                                                                 force[0], t, dt, R)
         hull = hull_of(rs, R, w_old, dt)
         if record:
             record_probes(rec, nrec, pos, vel, vprobe, True)
