@@ -35,12 +35,6 @@ from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 from spinweb_fe.fe.vectors import I_GRAVITY, I_HUB, node_momenta, plane_stats
 
 
-class Hull:
-    """Docs only: the hub surface of a step is given to the node pass as ``hull`` (4, 3):
-    the hub centre and unit axis at x_n, and their predictions at t_{n+1} (centre + dt times
-    its velocity, axis turned by dt omega)."""
-
-
 @njit(cache=True)
 def contact_free(i, pos, vel, f, m, r0, hull, rs, R, V, Pi, Fb, Tb, dt):
     """Kinematic contact of free node i with the free hub: a normal impulse along the node's
