@@ -23,6 +23,7 @@ from spinweb_fe.case.scene import prepare
 from spinweb_fe.cli import main
 from spinweb_fe.cli.info import summary
 from spinweb_fe.fe import rupture, step
+from spinweb_fe.fe.forces import make_links, make_work
 from spinweb_fe.fe.model import Elements
 from spinweb_fe.fe.rupture import make_strength, strength_start
 from spinweb_fe.record.energy import energy_balance
@@ -280,6 +281,15 @@ def chain(strains):
     return pos, Elements(nodes, rest, 1.0 / rest, np.full(m, EA), np.zeros(m), False)
 
 
+def forces_of(elems, strength, ss, pos, vel, threads=None, block=16):
+    """The step's element pass (strength pass when ``strength`` checks) summed per node:
+    (n, 3), blocks of ``block`` elements."""
+    work = make_work(len(pos), len(elems.nodes), threads or 1, block)
+    step.element_pass(elems, make_links(elems.nodes, len(pos)), strength, ss, pos, vel, work,
+                      True, 1e-5, threads)
+    return work.force
+
+
 def test_kernel_breaks_for_good_and_counts_the_energy():
     """Element 0 strained past eps_f breaks: no force, its energy EA eps^2 L0 / 2 released
     (less dt N dL/dt / 2 when it breaks while lengthening); restretched to half eps_f later it
@@ -287,14 +297,12 @@ def test_kernel_breaks_for_good_and_counts_the_energy():
     pos, elems = chain([1.5 * EPS_F, 0.5 * EPS_F])
     strength = make_strength(2, EPS_F, True)
     ss = strength_start(strength)
-    f = np.zeros((1, 3, 3))
-    step.element_pass(elems, strength, ss, pos, np.zeros_like(pos), f, np.zeros(2, np.int64),
-                      np.zeros((1, 8)), True, np.empty(0), 1e-5)
+    f = forces_of(elems, strength, ss, pos, np.zeros_like(pos))
     assert ss.broken.tolist() == [True, False] and ss.count[0] == 1
     assert ss.dissipation[0] == pytest.approx(0.5 * EA * (1.5 * EPS_F) ** 2, rel=1e-12)
     assert ss.peak[0] == pytest.approx(1.5) and ss.peak[2] == 0
-    np.testing.assert_allclose(f[0, 0], 0.0, atol=0)
-    np.testing.assert_allclose(f[0, 2, 0], -EA * 0.5 * EPS_F, rtol=1e-9)
+    np.testing.assert_allclose(f[0], 0.0, atol=0)
+    np.testing.assert_allclose(f[2, 0], -EA * 0.5 * EPS_F, rtol=1e-9)
     pos2, _ = chain([0.5 * EPS_F, 0.5 * EPS_F])
     t = np.zeros(2)
     rupture.accumulate_strength(elems, strength, ss.broken, pos2, np.zeros_like(pos2),
@@ -305,8 +313,7 @@ def test_kernel_breaks_for_good_and_counts_the_energy():
     ss = strength_start(strength)
     vel = np.zeros_like(pos)
     vel[1, 0] = 3.0
-    step.element_pass(elems, strength, ss, pos, vel, np.zeros((1, 3, 3)),
-                      np.zeros(2, np.int64), np.zeros((1, 8)), True, np.empty(0), 1e-5)
+    forces_of(elems, strength, ss, pos, vel)
     n_break = EA * 1.5 * EPS_F
     assert ss.dissipation[0] == pytest.approx(0.5 * n_break * 1.5 * EPS_F - 0.5e-5 * n_break * 3.0,
                                               rel=1e-12)
@@ -314,8 +321,9 @@ def test_kernel_breaks_for_good_and_counts_the_energy():
 
 def test_strength_loop_is_the_plain_loop_and_threads_agree():
     """On a random tangle (damped, some elements past eps_f): the strength loop without
-    rupture gives the plain loop's forces bit for bit; with rupture 2 threads break the same
-    elements and find the same peak as 1 (forces to round-off, 1e-12 relative)."""
+    rupture gives the plain loop's forces bit for bit, and both the scatter loop's; with
+    rupture 2 threads break the same elements and find the same peak as 1 (forces bit for
+    bit: fixed blocks, so within 1e-12 relative a fortiori)."""
     rng = np.random.default_rng(3)
     n, m = 40, 120
     pos = rng.normal(size=(n, 3))
@@ -325,27 +333,23 @@ def test_strength_loop_is_the_plain_loop_and_threads_agree():
     m = len(nodes)
     rest = np.linalg.norm(pos[nodes[:, 1]] - pos[nodes[:, 0]], axis=1) / (1 + 0.1 * rng.random(m))
     elems = Elements(nodes, rest, 1.0 / rest, np.full(m, EA), np.full(m, 30.0), True)
-    plain = np.zeros((1, n, 3))
-    step.element_pass(elems, rupture.no_strength(), strength_start(rupture.no_strength()),
-                      pos, vel, plain, np.zeros(2, np.int64), np.zeros((1, 8)), True,
-                      np.empty(0), 1e-5)
-    checked = np.zeros((1, n, 3))
+    plain = forces_of(elems, None, strength_start(rupture.no_strength()), pos, vel)
+    scatter = np.zeros((n, 3))
+    step.eval_elements(elems, pos, vel, scatter, np.zeros(m), True)
+    assert np.array_equal(plain, scatter)
     margins = make_strength(m, 0.05, False)
-    step.element_pass(elems, margins, strength_start(margins), pos, vel, checked,
-                      np.zeros(2, np.int64), np.zeros((1, 8)), True, np.empty(0), 1e-5)
+    checked = forces_of(elems, margins, strength_start(margins), pos, vel)
     assert np.array_equal(plain, checked)
     out = {}
     for nt in (1, 2):
         strength = make_strength(m, 0.05, True)
         ss = strength_start(strength)
-        f = np.zeros((nt, n, 3))
-        step.element_pass(elems, strength, ss, pos, vel, f, step.split(m, nt),
-                          np.zeros((nt, 8)), True, np.empty(0), 1e-5)
-        out[nt] = (ss, f.sum(axis=0))
+        out[nt] = (ss, forces_of(elems, strength, ss, pos, vel, threads=None if nt == 1 else nt))
     (s1, f1), (s2, f2) = out[1], out[2]
     assert 0 < s1.count[0] < m and np.array_equal(s1.broken, s2.broken)
     assert np.array_equal(s1.peak, s2.peak) and s1.count[0] == s2.count[0]
     np.testing.assert_allclose(f2, f1, rtol=0, atol=1e-12 * np.abs(f1).max())
+    assert np.array_equal(f2, f1)
 
 
 CASES = Path(__file__).resolve().parent.parent / "cases"

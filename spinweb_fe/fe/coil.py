@@ -288,23 +288,21 @@ def place_held(coil, cs, pos, vel, theta, omega):
 
 
 @njit(cache=True)
-def held_moment(coil, cs, pos, forces):
-    """z-moment of the element forces on the held nodes (over the force buffers (nt, n, 3))."""
+def held_moment(coil, cs, pos, force):
+    """z-moment of the element forces ``force`` (n, 3) on the held nodes."""
     tau = 0.0
-    for c in range(forces.shape[0]):
-        force = forces[c]
-        for k in range(coil.arm_ptr.shape[0] - 1):
-            a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
-            for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
-                i = coil.level_nodes[p]
-                tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
+        for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
+            i = coil.level_nodes[p]
+            tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
     return tau
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def gather_bundles(coil, cs, forces):
-    """The force on each released level of a bundled arm, summed on its spine node (buffer 0;
-    the other nodes' rows are cleared)."""
+def gather_bundles(coil, cs, force):
+    """The force (n, 3) on each released level of a bundled arm, summed on its spine node
+    (the other nodes' rows are cleared)."""
     for k in range(coil.arm_ptr.shape[0] - 1):
         if not cs.bundled[k]:
             continue
@@ -313,10 +311,9 @@ def gather_bundles(coil, cs, forces):
             m = coil.level_nodes[a]
             for p in range(a + 1, b):
                 i = coil.level_nodes[p]
-                for c in range(forces.shape[0]):
-                    for d in range(3):
-                        forces[0, m, d] += forces[c, i, d]
-                        forces[c, i, d] = 0.0
+                for d in range(3):
+                    force[m, d] += force[i, d]
+                    force[i, d] = 0.0
 
 
 @njit(cache=True, no_cpython_wrapper=True)

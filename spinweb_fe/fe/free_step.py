@@ -30,7 +30,7 @@ from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, fr
                                  spatial_inertia)
 from spinweb_fe.fe.rupture import record_strength
 from spinweb_fe.fe.step import (NodeMotion, checks_strength, element_pass, eval_elements,
-                                fold_buffers, record_arms, record_probes)
+                                record_arms, record_probes)
 from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 from spinweb_fe.fe.vectors import I_GRAVITY, I_HUB, node_momenta, plane_stats
 
@@ -92,7 +92,7 @@ def contact_free(i, pos, vel, f, m, r0, hull, rs, R, V, Pi, Fb, Tb, dt):
 def integrate_free(nodes, hub, mv, force, env, t, hull, rs, R, V, Pi, Fb, Tb, dt, record,
                    out):
     """Node pass of the free-hub step over every node: v += dt (f + m g) / m, contact with
-    the hub, x += dt v, f = 0. ``out[:2]`` receives the kinetic energy before and after on
+    the hub, x += dt v. ``out[:2]`` receives the kinetic energy before and after on
     record steps. Returns (contact dissipation [J], gravity-gradient work on the nodes [J])."""
     pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
     contact = nodes.contact
@@ -140,9 +140,6 @@ def integrate_free(nodes, hub, mv, force, env, t, hull, rs, R, V, Pi, Fb, Tb, dt
             pos[i, 0] += dt * vel[i, 0]  # x_{n+1} = x_n + dt v_{n+1/2}
             pos[i, 1] += dt * vel[i, 1]
             pos[i, 2] += dt * vel[i, 2]
-        force[i, 0] = 0.0
-        force[i, 1] = 0.0
-        force[i, 2] = 0.0
     if record:
         out[0] = 0.5 * ke0
         out[1] = 0.5 * ke1
@@ -257,20 +254,19 @@ def after_step(model, state, t_next):
 
 
 @njit(cache=True)
-def advance_free(model, law, state, force, rec, vec, dt, nsteps, ebounds=None):
-    """``nsteps`` steps of a free-hub scene; rows as :func:`spinweb_fe.fe.step.advance`, the
+def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
+    """``nsteps`` steps of a free-hub scene; rows as :func:`spinweb_fe.fe.step.advance` (its
+    workspace and threads for the force passes; the node pass runs on one thread), the
     vector table ``vec`` (rows, fe.vectors.VEC_WIDTH) always. Returns (status, rows)."""
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
     has_strength = checks_strength(strength)
-    nt = force.shape[0]
     pos, vel = state.node_pos, state.node_vel
+    force = work.force
     rs, totals = state.rigid, state.totals
-    eout = np.zeros((nt, 8))
     sums = np.zeros(2)
     incr = np.zeros(4)
     vprobe = np.zeros((rec.probes.shape[0], 3))
-    no_tension = np.empty(0)
     has_coil = coil.level_nodes.shape[0] > 0
     mv = NodeMotion(pos, vel, state.node_mass, state.node_inv_mass)
     nrec = 0
@@ -278,14 +274,13 @@ def advance_free(model, law, state, force, rec, vec, dt, nsteps, ebounds=None):
         step = state.step[0]
         record = step % rec.every == 0
         t = step * dt
-        se, tmax, pdamp = element_pass(elems, strength, state.strength, pos, vel, force,
-                                       ebounds, eout, record, no_tension, dt)
-        fold_buffers(force)
+        se, tmax, pdamp = element_pass(elems, model.links, strength, state.strength, pos, vel,
+                                       work, record, dt, threads)
         if has_coil:
             gather_bundles(coil, state.coil, force)
         R = rotation(rs.quaternion)
         Fb, Tb, torque, w_old, w3_old, V, Pi, Fg, Tg = body_kick(model, law, state, pos,
-                                                                 force[0], t, dt, R)
+                                                                 force, t, dt, R)
         hull = hull_of(rs, R, w_old, dt)
         if record:
             record_probes(rec, nrec, pos, vel, vprobe, True)
@@ -295,7 +290,7 @@ def advance_free(model, law, state, force, rec, vec, dt, nsteps, ebounds=None):
             vec[nrec] = 0.0
             node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
             plane_stats(pos, nodes.inv_mass, hull[0], hull[1], vec[nrec])
-        dcontact, wg = integrate_free(nodes, hub, mv, force[0], model.env, t, hull, rs, R, V,
+        dcontact, wg = integrate_free(nodes, hub, mv, force, model.env, t, hull, rs, R, V,
                                       Pi, Fb, Tb, dt, record, sums)
         if has_coil:
             scatter_bundles(coil, state.coil, pos, vel)
@@ -343,19 +338,19 @@ def start_free(model, law, state, dt):
     elems, coil, env = model.elements, model.coil, model.env
     pos, vel = state.node_pos, state.node_vel
     rs = state.rigid
-    force = np.zeros((1, pos.shape[0], 3))
-    eval_elements(elems, pos, vel, force[0], np.zeros(elems.nodes.shape[0]), False)
+    force = np.zeros((pos.shape[0], 3))
+    eval_elements(elems, pos, vel, force, np.zeros(elems.nodes.shape[0]), False)
     if coil.level_nodes.shape[0] > 0:
         gather_bundles(coil, state.coil, force)
     R = rotation(rs.quaternion)
-    F, T = body_loads(model.hub, coil, state.coil, rs, pos, force[0])
+    F, T = body_loads(model.hub, coil, state.coil, rs, pos, force)
     e = vertical(env, 0.0)
     n2 = env.n * env.n
     for i in range(pos.shape[0]):
         im = state.node_inv_mass[i]
         g = tidal_accel(n2, e, pos[i, 0], pos[i, 1], pos[i, 2])
         for d in range(3):
-            vel[i, d] -= 0.5 * dt * (force[0, i, d] * im + (g[d] if im > 0.0 else 0.0))
+            vel[i, d] -= 0.5 * dt * (force[i, d] * im + (g[d] if im > 0.0 else 0.0))
     if env.n > 0.0:
         Fg, Tg = body_tidal(env, 0.0, rs.mass[0], rs.position, spatial_inertia(rs, R))
         F += Fg

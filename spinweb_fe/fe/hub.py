@@ -9,17 +9,12 @@ from spinweb_fe.fe.control import eval_control
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def moment_of(pos, forces, idx):
-    """z-moment sum (x f_y - y f_x) of the forces on nodes ``idx``, over the per-thread force
-    buffers (nt, n, 3)."""
+def moment_of(pos, force, idx):
+    """z-moment sum (x f_y - y f_x) of the forces ``force`` (n, 3) on nodes ``idx``."""
     tau = 0.0
-    for c in range(forces.shape[0]):  # a partial sum per buffer, then their sum
-        force = forces[c]
-        part = 0.0
-        for k in range(idx.shape[0]):
-            i = idx[k]
-            part += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
-        tau += part
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
     return tau
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.forces import Links, make_links
 from spinweb_fe.fe.rigid import Body, fixed_axis
 from spinweb_fe.fe.rupture import Strength, no_strength
 from spinweb_fe.fe.tidal import Environment, no_environment
@@ -97,6 +98,7 @@ class Kernel(NamedTuple):
     """What the step kernels see of a Model (``Model.kernel``)."""
 
     elements: Elements
+    links: Links
     nodes: Nodes
     hub: Hub
     coil: Coil
@@ -114,6 +116,9 @@ class Model:
     mesh : Mesh
         The mesh the model was built from (reference positions, sets, arm data).
     elements : Elements
+    links : spinweb_fe.fe.forces.Links
+        Which nodes each element joins and which elements each node has (the force passes'
+        incidence, from ``elements.nodes``).
     nodes : Nodes
     hub : Hub
     coil : Coil
@@ -135,6 +140,7 @@ class Model:
 
     mesh: Mesh
     elements: Elements
+    links: Links
     nodes: Nodes
     hub: Hub
     coil: Coil
@@ -149,7 +155,7 @@ class Model:
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
-        return Kernel(self.elements, self.nodes, self.hub, self.coil, strength,
+        return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, strength,
                       self.body, self.env)
 
     @property
@@ -221,7 +227,8 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
     elements = Elements(np.ascontiguousarray(mesh.elem_nodes), rest, 1.0 / rest,
                         np.full(m, youngs_modulus * area), cdamp, bool(np.any(cdamp > 0.0)))
     nodes = Nodes(node_mass, inv, (inv > 0) & bool(contact and r0 > 0))
-    return Model(mesh=mesh, elements=elements, nodes=nodes, hub=hub, coil=no_coil(mesh.n_arms),
+    return Model(mesh=mesh, elements=elements, links=make_links(elements.nodes, len(node_mass)),
+                 nodes=nodes, hub=hub, coil=no_coil(mesh.n_arms),
                  tip_idx=np.asarray(mesh.node_sets["tips"], dtype=np.int64),
                  wave_speed=c, dt_critical=dt_crit)
 

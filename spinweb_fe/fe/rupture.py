@@ -33,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spinweb_fe.fe.law import add_pair, damped_tension, lengthening, stretch
+from spinweb_fe.fe.law import damped_tension, lengthening, stretch
 
 #: columns of the per-row strength table (``Recording.strength_table``): peak utilisation [-],
 #: its strain [-], its element, broken elements so far, rupture dissipation so far [J]
@@ -102,10 +102,11 @@ def strength_start(strength: Strength) -> StrengthState:
 
 
 @njit(cache=True, error_model="numpy")
-def accumulate_strength(elems, strength, broken, pos, vel, force, lo, hi, record, tension, dt):
-    """The element loop of :func:`spinweb_fe.fe.step.accumulate_elements` (same law, same
-    operations) over elements lo..hi-1, with the strength check and the break (``dt`` [s]:
-    the step, for the energy of a break).
+def accumulate_strength(elems, strength, broken, pos, vel, ef, lo, hi, record, tension, dt):
+    """The element law of :mod:`spinweb_fe.fe.forces` (same operations) over elements
+    lo..hi-1, with the strength check and the break (``dt`` [s]: the step, for the energy of
+    a break): each element's force vector into ``ef`` (3, m + 1) (zero once broken), its
+    tension into ``tension`` unless that is empty.
 
     Returns (strain energy [J] on record steps, max tension [N], damping power [W], peak
     utilisation, its strain, its element, energy of the elements broken now [J], their
@@ -129,77 +130,86 @@ def accumulate_strength(elems, strength, broken, pos, vel, force, lo, hi, record
     nbreak = 0
     write_tension = tension.shape[0] > 0
     for e in range(lo, hi):
-        if rupture and broken[e]:  # broken for good: no force, no check
-            if write_tension:
-                tension[e] = 0.0
-            continue
-        i = elem_nodes[e, 0]
-        j = elem_nodes[e, 1]
-        dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
-        u = strain * inv_fail[e]  # utilisation eps / eps_f
-        if u > upeak:
-            upeak = u
-            speak = strain
-            epeak = e
-        n_el = ea[e] * strain
-        if rupture and strain > fail[e]:  # the break at x_n: U - dt N dL/dt / 2 dissipated
-            broken[e] = True
-            nbreak += 1
-            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
-            released += 0.5 * n_el * strain / inv_rest[e] - 0.5 * dt * n_el * ldot
-            if write_tension:
-                tension[e] = 0.0
-            continue
-        n_tot = n_el
-        if damped:  # N_d = c dL/dt while taut, total tension never negative
-            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
-            n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
-            pdamp += (n_tot - n_el) * ldot
-        if record:
-            se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
-            tmax = max(tmax, n_tot)
+        n_tot = 0.0
+        dx = dy = dz = inv = 0.0
+        if not (rupture and broken[e]):  # broken for good: no force, no check
+            i = elem_nodes[e, 0]
+            j = elem_nodes[e, 1]
+            dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
+            u = strain * inv_fail[e]  # utilisation eps / eps_f
+            if u > upeak:
+                upeak = u
+                speak = strain
+                epeak = e
+            n_el = ea[e] * strain
+            if rupture and strain > fail[e]:  # the break at x_n: U - dt N dL/dt / 2 dissipated
+                broken[e] = True
+                nbreak += 1
+                ldot = lengthening(vel, i, j, dx, dy, dz, inv)
+                released += 0.5 * n_el * strain / inv_rest[e] - 0.5 * dt * n_el * ldot
+            else:
+                n_tot = n_el
+                if damped:  # N_d = c dL/dt while taut, total tension never negative
+                    ldot = lengthening(vel, i, j, dx, dy, dz, inv)
+                    n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
+                    pdamp += (n_tot - n_el) * ldot
+                if record:
+                    se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
+                    tmax = max(tmax, n_tot)
         if write_tension:
             tension[e] = n_tot
-        add_pair(force, i, j, n_tot * inv, dx, dy, dz)
+        c = n_tot * inv
+        ef[0, e] = c * dx
+        ef[1, e] = c * dy
+        ef[2, e] = c * dz
     return se, tmax, pdamp, upeak, speak, epeak, released, nbreak
 
 
+@njit(cache=True, no_cpython_wrapper=True)
+def strength_block(elems, strength, broken, pos, vel, ef, b, size, record, out, dt):
+    """:func:`accumulate_strength` of element block b (``size`` elements) into out (8,)."""
+    lo = b * size
+    hi = min(lo + size, elems.inv_rest.shape[0])
+    (out[0], out[1], out[2], out[3], out[4], out[5], out[6],
+     out[7]) = accumulate_strength(elems, strength, broken, pos, vel, ef, lo, hi, record,
+                                   np.empty(0), dt)
+
+
 @njit(cache=True, parallel=True)
-def strength_threads(elems, strength, broken, pos, vel, forces, bounds, record, out, dt):
-    """:func:`accumulate_strength` on several threads: chunk c (elements bounds[c] ..
-    bounds[c+1]-1, each written by its own chunk only) into its own buffer forces[c];
-    out[c] = its eight results."""
-    for c in prange(forces.shape[0]):
-        se, tm, pd, u, s, e, released, nbreak = accumulate_strength(
-            elems, strength, broken, pos, vel, forces[c], bounds[c], bounds[c + 1], record,
-            np.empty(0), dt)
-        out[c, 0] = se
-        out[c, 1] = tm
-        out[c, 2] = pd
-        out[c, 3] = u
-        out[c, 4] = s
-        out[c, 5] = e
-        out[c, 6] = released
-        out[c, 7] = nbreak
+def strength_threads(elems, strength, broken, pos, vel, work, record, dt):
+    """:func:`strength_block` of every block, the blocks in one contiguous chunk per thread
+    (each element written by its own block only)."""
+    nc = work.buf.shape[0]
+    nb = work.eout.shape[0]
+    for c in prange(nc):
+        for b in range(nb * c // nc, nb * (c + 1) // nc):
+            strength_block(elems, strength, broken, pos, vel, work.ef, b, work.buf.shape[2],
+                           record, work.eout[b], dt)
 
 
 @njit(cache=True)
-def strength_pass(elems, strength, ss, pos, vel, force, ebounds, sout, record, no_tension, dt):
-    """Element forces of this step with the strength check (one thread, force (1, n, 3), or
-    one buffer per thread); the peak since the last row, the broken count and the rupture
-    dissipation go into ``ss`` (:class:`StrengthState`). Returns (strain energy, max tension,
-    damping power) as the plain element pass does (``ebounds`` None: one thread, and numba
-    compiles no thread kernel)."""
-    if ebounds is None or force.shape[0] == 1:
-        se, tmax, pdamp, u, s, e, released, nbreak = accumulate_strength(
-            elems, strength, ss.broken, pos, vel, force[0], 0, elems.nodes.shape[0], record,
-            no_tension, dt)
-        merge_peak(ss, u, s, e, released, nbreak)
-        return se, tmax, pdamp
-    strength_threads(elems, strength, ss.broken, pos, vel, force, ebounds, record, sout, dt)
-    for c in range(sout.shape[0]):  # chunk order: the first of equal peaks wins, as serially
-        merge_peak(ss, sout[c, 3], sout[c, 4], sout[c, 5], sout[c, 6], sout[c, 7])
-    return sout[:, 0].sum(), sout[:, 1].max(), sout[:, 2].sum()
+def strength_pass(elems, strength, ss, pos, vel, work, record, dt, threads=None):
+    """Element force vectors of this step into ``work.ef`` with the strength check; the peak
+    since the last row, the broken count and the rupture dissipation go into ``ss``
+    (:class:`StrengthState`). Returns (strain energy, max tension, damping power) as the
+    plain element pass does (``threads`` None: one thread, and numba compiles no thread
+    kernel). Blocks are merged in block order: the first of equal peaks wins, as serially."""
+    eout = work.eout
+    if threads is None:
+        for b in range(eout.shape[0]):
+            strength_block(elems, strength, ss.broken, pos, vel, work.ef, b, work.buf.shape[2],
+                           record, eout[b], dt)
+    else:
+        strength_threads(elems, strength, ss.broken, pos, vel, work, record, dt)
+    se = 0.0
+    tmax = 0.0
+    pdamp = 0.0
+    for b in range(eout.shape[0]):
+        se += eout[b, 0]
+        tmax = max(tmax, eout[b, 1])
+        pdamp += eout[b, 2]
+        merge_peak(ss, eout[b, 3], eout[b, 4], int(eout[b, 5]), eout[b, 6], int(eout[b, 7]))
+    return se, tmax, pdamp
 
 
 @njit(cache=True)

@@ -2,7 +2,8 @@
 
 Central differences with half-step velocities (Kratos / LS-DYNA style):
 
-    f_n        = internal forces at x_n (damping with v_{n-1/2})
+    f_n        = internal forces at x_n (damping with v_{n-1/2}): element force vectors,
+                 then their sum per node (fe.forces)
     v_{n+1/2}  = v_{n-1/2} + dt f_n / m                       (free nodes)
     omega_{n+1/2} = omega_{n-1/2} + dt (M_n + tau_n) / J_eff  (hub, or prescribed)
     contact    : radial impulse so that x_{n+1} stays outside the hub (+ Coulomb friction)
@@ -12,9 +13,9 @@ Central differences with half-step velocities (Kratos / LS-DYNA style):
     held coil  : x = R(theta_{n+1}) x_hub; then the peel fronts and bundles (fe.coil)
 
 The kernels take the named data of :mod:`spinweb_fe.fe.model` (``Model.kernel``: elements,
-nodes, hub, coil), :mod:`spinweb_fe.fe.state` (``State``), the law (``KernelLaw``) and
+links, nodes, hub, coil), :mod:`spinweb_fe.fe.state` (``State``), the law (``KernelLaw``) and
 ``Recording`` below. The features they call live in their own files of ``fe/`` (contact, hub,
-coil, control, rupture): the numba cache of every ``fe`` kernel is stamped with the whole folder
+coil, control, rupture, forces): the numba cache of every ``fe`` kernel is stamped with the whole folder
 (:mod:`spinweb_fe.fe.cache`), so an edit of a helper recompiles its callers. Constants come
 in as arguments, never as module globals. The element pass uses ``error_model="numpy"`` so
 that divisions carry no Python zero-division check (a branch per element); its divisor is
@@ -32,6 +33,7 @@ from spinweb_fe.fe.coil import (front_row, gather_bundles, held_moment, open_bun
                                 payout_allowed, place_held, release_fronts, scatter_bundles)
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
+from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
 from spinweb_fe.fe.law import add_pair, damped_tension, lengthening, stretch
 from spinweb_fe.fe.rupture import record_strength, strength_pass
@@ -75,17 +77,18 @@ class Recording(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy")
-def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension, elist=None):
-    """Hot loop: tension-only element forces of elements lo..hi-1 (or of elist[lo:hi], an
-    element list) added into ``force`` (n,3); element tensions written into ``tension``
-    unless it is empty (the list is decided by numba from its type: without it the loop is
-    the plain one).
+def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension):
+    """The plain scatter loop: tension-only element forces of elements lo..hi-1 added into
+    ``force`` (n,3); element tensions written into ``tension`` unless it is empty. Frames,
+    the start of a run and the tests use it; the step loop takes the same law through
+    :mod:`spinweb_fe.fe.forces` (element vectors, then node sums: the same forces bit for
+    bit, vectorised and threaded).
 
     1/L0 is stored, and the tension-only rule is a branch-free max on the strain (a web
     spinning unstretched sits on the slack/taut kink, where a real branch is mispredicted
-    about half the time: measured 11 ns against 5.8 ns per element). Zero-length elements
-    give zero force (the length gets 1e-300 added under the root). Returns (strain energy
-    [J], max tension [N]) on record steps, and the damping power [W].
+    about half the time). Zero-length elements give zero force (the length gets 1e-300 added
+    under the root). Returns (strain energy [J], max tension [N]) on record steps, and the
+    damping power [W].
     """
     elem_nodes = elems.nodes
     inv_rest = elems.inv_rest
@@ -96,11 +99,7 @@ def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension, elist=N
     tmax = 0.0
     pdamp = 0.0
     write_tension = tension.shape[0] > 0
-    for k in range(lo, hi):
-        if elist is None:
-            e = k
-        else:
-            e = elist[k]
+    for e in range(lo, hi):
         i = elem_nodes[e, 0]
         j = elem_nodes[e, 1]
         dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
@@ -128,19 +127,6 @@ def eval_elements(elems, pos, vel, force, tension, want_energy):
                                tension)
 
 
-@njit(cache=True, parallel=True)
-def accumulate_threads(elems, pos, vel, forces, bounds, record, out, elist):
-    """Element pass on several threads: chunk c (elements bounds[c]..bounds[c+1]-1, or
-    elist[bounds[c]:bounds[c+1]] with an element list) adds into its own buffer forces[c];
-    out[c] = (strain energy, max tension, damping power)."""
-    for c in prange(forces.shape[0]):
-        se, tm, pd = accumulate_elements(elems, pos, vel, forces[c], bounds[c], bounds[c + 1],
-                                         record, np.empty(0), elist)
-        out[c, 0] = se
-        out[c, 1] = tm
-        out[c, 2] = pd
-
-
 class NodeMotion(NamedTuple):
     """The node arrays of the State that the node pass updates or reads (a flat tuple, as
     the parallel kernels take it)."""
@@ -151,116 +137,113 @@ class NodeMotion(NamedTuple):
     inv_mass: np.ndarray
 
 
-@njit(cache=True)
+@njit(inline="always", error_model="numpy")
+def kick(mv, force, contact, r0, dt, lo, hi):
+    """v_{n+1/2} = v_{n-1/2} + dt f / m for nodes lo..hi-1, as a straight loop that LLVM
+    vectorises (a node without active mass, 1/m = 0: tied, held, inside a bundle, adds
+    nothing). Returns whether a contact node with active mass heads inside the hub cylinder
+    (x_n + dt v_{n+1/2} within r0 of the axis; an OR reduction)."""
+    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
+    hit = 0
+    for q in range(hi - lo):
+        i = np.uint64(lo + q)
+        im = inv_mass[i]
+        vx = vel[i, 0] + dt * force[i, 0] * im
+        vy = vel[i, 1] + dt * force[i, 1] * im
+        vel[i, 0] = vx
+        vel[i, 1] = vy
+        vel[i, 2] += dt * force[i, 2] * im
+        px = pos[i, 0] + dt * vx
+        py = pos[i, 1] + dt * vy
+        hit |= 1 if (px * px + py * py < r0 * r0) and contact[i] and im > 0.0 else 0
+    return hit > 0
+
+
+@njit(inline="always", error_model="numpy")
+def drift(mv, dt, lo, hi):
+    """x_{n+1} = x_n + dt v_{n+1/2} for the nodes of lo..hi-1 with active mass (a straight
+    loop: the others add 0 dt v)."""
+    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
+    for q in range(hi - lo):
+        i = np.uint64(lo + q)
+        a = 1.0 if inv_mass[i] > 0.0 else 0.0
+        pos[i, 0] += a * (dt * vel[i, 0])
+        pos[i, 1] += a * (dt * vel[i, 1])
+        pos[i, 2] += a * (dt * vel[i, 2])
+
+
+@njit(inline="always", error_model="numpy")
+def kick_drift(mv, force, dt, lo, hi):
+    """:func:`kick` then :func:`drift` in one straight loop (no contact, no records)."""
+    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
+    for q in range(hi - lo):
+        i = np.uint64(lo + q)
+        im = inv_mass[i]
+        a = 1.0 if im > 0.0 else 0.0
+        for d in range(3):
+            v = vel[i, d] + dt * force[i, d] * im
+            vel[i, d] = v
+            pos[i, d] += a * (dt * v)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def spin_sums(mv, lo, hi):
+    """(sum m |v|^2, sum m (x v_y - y v_x)) over the nodes of lo..hi-1 with active mass."""
+    pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
+    ke = 0.0
+    lz = 0.0
+    for i in range(lo, hi):
+        if inv_mass[i] > 0.0:
+            m = node_mass[i]
+            ke += m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+            lz += m * (pos[i, 0] * vel[i, 1] - pos[i, 1] * vel[i, 0])
+    return ke, lz
+
+
+@njit(cache=True, no_cpython_wrapper=True)
 def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, record, out):
-    """Fused node pass over nodes lo..hi-1: v += dt f/m, cable-hub contact, x += dt v, and
-    f = 0 for the next step. ``mv``: :class:`NodeMotion`; nodes with no active mass (tied,
-    held, inside a bundle) are skipped; ``j_eff`` [kg m^2] is the hub's inertia now. On
-    record steps ``out[:4]`` receives the kinetic energy and angular momentum sums before
-    and after the update. Returns (omega, contact dissipation [J])."""
-    pos = mv.pos
-    vel = mv.vel
-    inv_mass = mv.inv_mass
-    node_mass = mv.mass
+    """Node pass over nodes lo..hi-1: v += dt f/m, cable-hub contact, x += dt v.
+    ``mv``: :class:`NodeMotion`; nodes with no active mass (tied, held, inside a bundle)
+    stay; ``j_eff`` [kg m^2] is the hub's inertia now. Contact is looked at only in a block
+    where some node heads inside the hub. On record steps ``out[:4]`` receives the kinetic
+    energy and angular momentum sums before and after the update. Returns (omega, contact
+    dissipation [J])."""
+    pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
     contact = nodes.contact
     r0 = hub.radius
-    mu = hub.friction
-    ke0 = 0.0
-    ke1 = 0.0
-    lz0 = 0.0
-    lz1 = 0.0
     diss = 0.0
-    use_contact = r0 > 0.0
-    for i in range(lo, hi):
-        im = inv_mass[i]
-        if im > 0.0:
-            m = node_mass[i]
-            if record:
-                ke0 += m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-                lz0 += m * (pos[i, 0] * vel[i, 1] - pos[i, 1] * vel[i, 0])
-            vel[i, 0] += dt * force[i, 0] * im  # v_{n+1/2} = v_{n-1/2} + dt f / m
-            vel[i, 1] += dt * force[i, 1] * im
-            vel[i, 2] += dt * force[i, 2] * im
-            if use_contact and contact[i]:
-                px = pos[i, 0] + dt * vel[i, 0]  # predicted position: only nodes heading
-                py = pos[i, 1] + dt * vel[i, 1]  # inside the hub cylinder need the call
-                if px * px + py * py < r0 * r0:
-                    omega, d = contact_node(i, pos, vel, force, m, r0, mu, j_eff, omega,
-                                            dw_force, dt)
-                    diss += d
-            if record:
-                ke1 += m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-                lz1 += m * (pos[i, 0] * vel[i, 1] - pos[i, 1] * vel[i, 0])
-            pos[i, 0] += dt * vel[i, 0]  # x_{n+1} = x_n + dt v_{n+1/2}
-            pos[i, 1] += dt * vel[i, 1]
-            pos[i, 2] += dt * vel[i, 2]
-        force[i, 0] = 0.0
-        force[i, 1] = 0.0
-        force[i, 2] = 0.0
+    if not (record or r0 > 0.0):
+        kick_drift(mv, force, dt, lo, hi)
+        return omega, diss
     if record:
-        out[0] = 0.5 * ke0
-        out[1] = 0.5 * ke1
-        out[2] = lz0
-        out[3] = lz1
+        out[0], out[2] = spin_sums(mv, lo, hi)
+    if kick(mv, force, contact, r0, dt, lo, hi):  # v_{n+1/2} = v_{n-1/2} + dt f / m
+        for i in range(lo, hi):
+            if contact[i] and inv_mass[i] > 0.0:
+                omega, d = contact_node(i, pos, vel, force, node_mass[i], r0, hub.friction,
+                                        j_eff, omega, dw_force, dt)
+                diss += d
+    if record:
+        out[1], out[3] = spin_sums(mv, lo, hi)
+        out[0] *= 0.5
+        out[1] *= 0.5
+    drift(mv, dt, lo, hi)  # x_{n+1} = x_n + dt v_{n+1/2}
     return omega, diss
 
 
 @njit(cache=True, parallel=True)
-def integrate_threads(nodes, hub, mv, forces, omega, dw_force, j_eff, dt, nbounds, record, out):
-    """Node pass on several threads (frictionless contact only: friction turns the hub node by
-    node). ``nbounds`` (3, nt + 1): row 0 the node blocks (one per buffer), rows 1 and 2 the
-    range of nodes [lo, hi) where buffer c can hold forces (fe.threads). Block b
-    adds the other buffers into its own buffer b for its nodes, within those ranges
-    (elsewhere they are zero), then integrates its nodes from buffer b; out[b] = (ke0, ke1,
-    lz0, lz1, contact dissipation). With two buffers the sums are those of a fold into
-    buffer 0 (a + b = b + a)."""
-    for b in prange(nbounds.shape[1] - 1):
-        lo = nbounds[0, b]
-        hi = nbounds[0, b + 1]
-        for c in range(forces.shape[0]):
-            if c == b:
-                continue
-            for i in range(max(lo, nbounds[1, c]), min(hi, nbounds[2, c])):
-                for d in range(3):
-                    forces[b, i, d] += forces[c, i, d]
-                    forces[c, i, d] = 0.0
-        _, diss = integrate_nodes(nodes, hub, mv, forces[b], omega, dw_force, j_eff, dt, lo, hi,
-                                  record, out[b])
-        out[b, 4] = diss
-
-
-@njit(cache=True)
-def split(n, parts):
-    """Bounds (parts + 1,) of ``parts`` near-equal contiguous ranges of 0..n-1."""
-    b = np.empty(parts + 1, np.int64)
-    for k in range(parts + 1):
-        b[k] = (n * k) // parts
-    return b
-
-
-@njit(cache=True)
-def element_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record, no_tension, dt,
-                 lists=None):
-    """Element forces of this step into the force buffers: one thread (force (1, n, 3)) or
-    several (one buffer per thread, ``ebounds`` their element ranges). A scene with a failure
-    strain takes the strength pass (fe.rupture; ``ss`` its state, ``eout`` (nt, 8), ``dt``
-    the step). Returns (strain energy, max tension, damping power).
-
-    ``strength`` None (no strength check) and ``ebounds`` None (one thread) are decided by
-    numba from the argument types, before it types the branches: a scene compiles only the
-    passes it can take (the strength and thread kernels cost seconds of compile time)."""
-    if strength is not None:
-        if strength.fail.shape[0] > 0:
-            return strength_pass(elems, strength, ss, pos, vel, force, ebounds, eout, record,
-                                 no_tension, dt)
-    if ebounds is None or force.shape[0] == 1:
-        return accumulate_elements(elems, pos, vel, force[0], 0, elems.nodes.shape[0], record,
-                                   no_tension)
-    if lists is None:
-        accumulate_threads(elems, pos, vel, force, ebounds, record, eout, None)
-    else:  # the elements grouped by node block (fe.threads)
-        accumulate_threads(elems, pos, vel, force, lists[0], record, eout, lists[1])
-    return eout[:, 0].sum(), eout[:, 1].max(), eout[:, 2].sum()
+def integrate_threads(nodes, hub, mv, force, omega, dw_force, j_eff, dt, nout, chunks, record):
+    """:func:`integrate_nodes` on several threads (frictionless contact only: friction turns
+    the hub node by node): node block b (``nout.shape[0]`` blocks of equal size) into
+    nout[b] = (ke0, ke1, lz0, lz1, contact dissipation), the blocks in one contiguous chunk
+    per thread."""
+    n = force.shape[0]
+    nb = nout.shape[0]
+    size = -(-n // nb)
+    for c in prange(chunks):
+        for b in range(nb * c // chunks, nb * (c + 1) // chunks):
+            _, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt,
+                                            b * size, min(n, (b + 1) * size), record, nout[b])
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -272,34 +255,48 @@ def checks_strength(strength):
 
 
 @njit(cache=True)
-def node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout, sums, record):
-    """Velocity and position update of every free node (one thread, or several when contact
-    is frictionless). ``sums[:4]`` receives the kinetic energy and angular momentum sums.
-    Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
-    nt = force.shape[0]
+def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads=None):
+    """The internal forces at x_n into ``work.force`` (n, 3) (overwritten): every element's force
+    vector (fe.forces, or the strength pass of fe.rupture for a scene with a failure strain;
+    ``ss`` its state, ``dt`` the step), then their sum per node. Returns (strain energy, max
+    tension, damping power).
+
+    ``strength`` None (no strength check) and ``threads`` None (one thread) are decided by
+    numba from the argument types, before it types the branches: a scene compiles only the
+    passes it can take (the strength and thread kernels cost seconds of compile time)."""
+    if strength is not None and strength.fail.shape[0] > 0:  # pruned by numba when None
+        se, tmax, pdamp = strength_pass(elems, strength, ss, pos, vel, work, record, dt,
+                                        threads)
+    else:
+        se, tmax, pdamp = element_forces(elems, links, pos, vel, work, record, threads)
+    node_forces(links, work, threads)
+    return se, tmax, pdamp
+
+
+@njit(cache=True)
+def node_pass(nodes, hub, state, force, w_old, w_new, dt, nout, sums, record, threads=None):
+    """Velocity and position update of every free node, in node blocks (``nout`` (blocks,
+    5): their partial sums), on several threads when contact is frictionless. ``sums[:5]``
+    receives the kinetic energy and angular momentum sums and the contact dissipation, added
+    in block order. Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
     mv = NodeMotion(state.node_pos, state.node_vel, state.node_mass, state.node_inv_mass)
     j_eff = state.hub.inertia[0]
-    if nbounds is not None and nt > 1 and hub.friction == 0.0:  # None: pruned by numba
-        integrate_threads(nodes, hub, mv, force, w_new, w_new - w_old, j_eff, dt, nbounds,
-                          record, nout)
-        for k in range(5):
-            sums[k] = nout[:, k].sum()
-        return w_new, sums[4]
-    fold_buffers(force)
-    return integrate_nodes(nodes, hub, mv, force[0], w_new, w_new - w_old, j_eff, dt, 0,
-                           mv.pos.shape[0], record, sums)
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def fold_buffers(force):
-    """force[0] += force[c], force[c] = 0 for every other thread's buffer c, in order (an
-    explicit loop: numba's array expression for it costs seconds of compile time building
-    its shape-mismatch message)."""
-    for c in range(1, force.shape[0]):
-        for i in range(force.shape[1]):
-            for d in range(3):
-                force[0, i, d] += force[c, i, d]
-                force[c, i, d] = 0.0
+    n = force.shape[0]
+    nb = nout.shape[0]
+    size = -(-n // nb)
+    w = w_new
+    if threads is not None and hub.friction == 0.0:  # None: pruned by numba
+        integrate_threads(nodes, hub, mv, force, w_new, w_new - w_old, j_eff, dt, nout,
+                          threads, record)
+    else:
+        for b in range(nb):
+            w, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, w, w_new - w_old, j_eff, dt,
+                                            b * size, min(n, (b + 1) * size), record, nout[b])
+    for k in range(5):
+        sums[k] = 0.0
+        for b in range(nb):
+            sums[k] += nout[b, k]
+    return w, sums[4]
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -357,34 +354,29 @@ def coil_step(coil, elems, nodes, state, t_next):
 
 
 @njit(cache=True)
-def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, nbounds=None,
-            lists=None):
+def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
-    ``model`` is the kernel view of the Model (``Model.kernel``). ``force`` (nt, n, 3) holds
-    one force buffer per thread (nt = 1: serial) and must be zero on entry (the node pass
-    leaves it zeroed). Row k of ``rec.table`` holds REC_COLUMNS at integer step n,
+    ``model`` is the kernel view of the Model (``Model.kernel``); ``work`` the scratch of the
+    force passes (:func:`spinweb_fe.fe.forces.make_work`). Row k of ``rec.table`` holds
+    REC_COLUMNS at integer step n,
     ``rec.probe_pos/vel`` the probe positions x_n and mean velocities, ``rec.arm_table`` the
     arm data of :func:`record_arms`, and ``vec`` (rows, fe.vectors.VEC_WIDTH), if given, the
     momentum vectors, the hub's pose and the distances from the hub plane (a run that can
-    leave the plane; without it numba compiles none of that). Several threads (nt > 1) need
-    ``ebounds``, ``nbounds`` and ``lists``, the element and node ranges of each
-    (fe.threads.thread_ranges); without them (one thread) numba compiles no thread kernel.
-    Threads give the same result for a given thread count (fixed chunks, fixed reduction
-    order). Returns (status, rows): 0 ok, 1 non-finite.
+    leave the plane; without it numba compiles none of that). ``threads``: None for one
+    thread (numba compiles no thread kernel), else the number of threads, which run the
+    workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
+    reduction order). Returns (status, rows): 0 ok, 1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     strength = model.strength
     has_strength = checks_strength(strength)
-    nt = force.shape[0]
     pos = state.node_pos
     vel = state.node_vel
-    eout = np.zeros((nt, 8))
-    nout = np.zeros((nt, 5))
+    force = work.force
     sums = np.zeros(5)
     incr = np.zeros(3)
     vprobe = np.zeros((rec.probes.shape[0], 3))
-    no_tension = np.empty(0)
     totals = state.totals
     has_coil = coil.level_nodes.shape[0] > 0
     nrec = 0
@@ -392,8 +384,8 @@ def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, n
         step = state.step[0]
         record = step % rec.every == 0
         t = step * dt
-        se, tmax, pdamp = element_pass(elems, strength, state.strength, pos, vel, force,
-                                       ebounds, eout, record, no_tension, dt, lists)
+        se, tmax, pdamp = element_pass(elems, model.links, strength, state.strength, pos, vel,
+                                       work, record, dt, threads)
         tau = moment_of(pos, force, hub.tied_idx)
         if has_coil:
             tau += held_moment(coil, state.coil, pos, force)
@@ -412,8 +404,8 @@ def advance(model, law, state, force, rec, dt, nsteps, vec=None, ebounds=None, n
                 plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]),
                             vec[nrec])
         theta = state.hub.angle[0]
-        w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, nbounds, nout,
-                                    sums, record)
+        w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, work.nout, sums,
+                                    record, threads)
         if has_coil:
             scatter_bundles(coil, state.coil, pos, vel)
         incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
@@ -450,13 +442,13 @@ def start_half_step(model, law, state, dt):
     elems, hub, coil = model.elements, model.hub, model.coil
     pos = state.node_pos
     vel = state.node_vel
-    force = np.zeros((1, pos.shape[0], 3))
-    eval_elements(elems, pos, vel, force[0], np.zeros(elems.nodes.shape[0]), False)
+    force = np.zeros((pos.shape[0], 3))
+    eval_elements(elems, pos, vel, force, np.zeros(elems.nodes.shape[0]), False)
     if coil.level_nodes.shape[0] > 0:
         gather_bundles(coil, state.coil, force)
     for i in range(pos.shape[0]):
         for d in range(3):
-            vel[i, d] -= 0.5 * dt * force[0, i, d] * state.node_inv_mass[i]
+            vel[i, d] -= 0.5 * dt * force[i, d] * state.node_inv_mass[i]
     tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil, state.coil, pos, force)
     prescribed, value = eval_control(law, 0.0, state.hub.rate[0])
     if prescribed:

@@ -15,9 +15,9 @@ import numpy as np
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe import free_step, step
 from spinweb_fe.fe.control import Control
+from spinweb_fe.fe.forces import make_work
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.state import State
-from spinweb_fe.fe.threads import thread_ranges
 from spinweb_fe.fe.vectors import VEC_WIDTH
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
@@ -123,11 +123,9 @@ class _Chunks:
 
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, control.kernel)
-        self.force = np.zeros((threads, model.n_nodes, 3))  # one buffer per thread
-        # the thread ranges; None on one thread, so that numba compiles no thread kernel
-        self.bounds = (None, None, None) if threads == 1 else thread_ranges(
-            model.elements.nodes, model.n_nodes, threads, not len(model.strength.fail),
-            model.coil.bundle_code > 0)
+        self.work = make_work(model.n_nodes, model.n_elems, threads)
+        # None on one thread, so that numba compiles no thread kernel
+        self.threads = None if threads == 1 else threads
         rows = ROWS_PER_CHUNK + 1
         n_probes = len(tracker.probes)
         self.rec = step.Recording(rec_every, tracker.probes,
@@ -145,10 +143,10 @@ class _Chunks:
 
     def advance(self, state, dt, nsteps):
         if self.model.free_hub:
-            return free_step.advance_free(*self.args, state, self.force, self.rec, self.vec,
-                                          dt, nsteps, self.bounds[0])
-        return step.advance(*self.args, state, self.force, self.rec, dt, nsteps, self.vec,
-                            *self.bounds)
+            return free_step.advance_free(*self.args, state, self.work, self.rec, self.vec,
+                                          dt, nsteps, self.threads)
+        return step.advance(*self.args, state, self.work, self.rec, dt, nsteps, self.vec,
+                            self.threads)
 
     def rows(self, nrec) -> dict:
         rows = table_rows(self.rec.table, nrec)
