@@ -41,18 +41,13 @@ OUT = Path(__file__).resolve().parent / "results" / "profile_loop.json"
 @njit
 def element_pass(elems, links, pos, vel, work, record, threads):
     """The element pass alone (a CPython entry for the kernel that has none)."""
-    if threads is None:
-        return forces.element_forces(elems, links, pos, vel, work, record)
     return forces.element_forces(elems, links, pos, vel, work, record, threads)
 
 
 @njit
 def node_sums(links, work, threads):
     """The node sums alone."""
-    if threads is None:
-        forces.node_forces(links, work)
-    else:
-        forces.node_forces(links, work, threads)
+    forces.node_forces(links, work, threads)
 
 
 def best_of(fn, repeat):

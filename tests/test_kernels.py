@@ -8,6 +8,7 @@ import pytest
 
 from spinweb_fe.fe import step
 from spinweb_fe.fe.control import LAWS, KernelLaw, make_control
+from spinweb_fe.fe.forces import eval_elements
 from spinweb_fe.fe.model import Elements
 
 EA = 1.845e6
@@ -26,7 +27,7 @@ def forces(pos, nodes, rest, ea, cd, vel=None):
     t = np.zeros(len(nodes))
     vel = np.zeros_like(pos) if vel is None else vel
     elems = Elements(np.asarray(nodes, np.int64), rest, 1.0 / rest, ea, cd, bool(np.any(cd > 0)))
-    se, tmax, p = step.eval_elements(elems, pos, vel, f, t, True)
+    se, tmax, p = eval_elements(elems, pos, vel, f, t, True)
     return f, t, se, tmax, p
 
 

@@ -20,6 +20,7 @@ from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe import step
 from spinweb_fe.fe.control import free as free_law
 from spinweb_fe.fe.control import make_control
+from spinweb_fe.fe.forces import eval_elements
 from spinweb_fe.fe.hub import place_rigid
 from spinweb_fe.fe.model import Elements, build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
@@ -39,7 +40,7 @@ def one_element(stretch, vel_j, cdamp):
     elems = Elements(np.array([[0, 1]], np.int64), np.ones(1), np.ones(1), np.full(1, EA),
                      np.full(1, cdamp), True)
     f, t = np.zeros((2, 3)), np.zeros(1)
-    se, tmax, p = step.eval_elements(elems, pos, vel, f, t, True)
+    se, tmax, p = eval_elements(elems, pos, vel, f, t, True)
     return f, t[0], se, tmax, p
 
 

@@ -302,7 +302,10 @@ def held_moment(coil, cs, pos, force):
 @njit(cache=True, no_cpython_wrapper=True)
 def gather_bundles(coil, cs, force):
     """The force (n, 3) on each released level of a bundled arm, summed on its spine node
-    (the other nodes' rows are cleared)."""
+    (the other nodes' rows are cleared). ``coil`` None: a scene without bundles (numba
+    compiles nothing of it)."""
+    if coil is None:
+        return
     for k in range(coil.arm_ptr.shape[0] - 1):
         if not cs.bundled[k]:
             continue
@@ -318,7 +321,10 @@ def gather_bundles(coil, cs, force):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def scatter_bundles(coil, cs, pos, vel):
-    """The other nodes of each bundle take its spine node's position and velocity."""
+    """The other nodes of each bundle take its spine node's position and velocity (``coil``
+    None: no bundles)."""
+    if coil is None:
+        return
     for k in range(coil.arm_ptr.shape[0] - 1):
         if not cs.bundled[k]:
             continue
@@ -403,7 +409,10 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
 @njit(cache=True)
 def open_bundles(coil, cs, nodes, mass, inv_mass, t):
     """Open the bundles of the arms that reached the release (length fraction or time):
-    every node keeps the bundle's position and velocity and gets its own mass back."""
+    every node keeps the bundle's position and velocity and gets its own mass back
+    (``coil`` None: no bundles)."""
+    if coil is None:
+        return
     for k in range(coil.arm_ptr.shape[0] - 1):
         if not cs.bundled[k]:
             continue
@@ -413,9 +422,9 @@ def open_bundles(coil, cs, nodes, mass, inv_mass, t):
             span = coil.arm_end[k] - coil.arm_base[k]
             due = free_length(coil, cs, k) >= coil.bundle_value * span - 1e-12 * span
         if due:
-            level_masses(coil, cs, nodes, mass, inv_mass, coil.arm_ptr[k],
-                         coil.arm_ptr[k] + cs.front[k], False)
             cs.bundled[k] = False
+            level_masses(coil, cs, nodes, mass, inv_mass, coil.arm_ptr[k],
+                         coil.arm_ptr[k] + cs.front[k], cs.bundled[k])
 
 
 @njit(cache=True, no_cpython_wrapper=True)

@@ -69,6 +69,8 @@ class Work(NamedTuple):
     force : (n, 3) float64 [N]
         The internal force on each node (written by the node pass; the step's features
         read and amend it).
+    tension : (m,) float64 [N]
+        Element tensions, written on record steps and by damped elements.
     ef : (3, m + 1) float64 [N]
         Element force vectors f_e (column m stays zero: the padding slot).
     buf : (chunks, 8, BLOCK) float64
@@ -83,6 +85,7 @@ class Work(NamedTuple):
     """
 
     force: np.ndarray
+    tension: np.ndarray
     ef: np.ndarray
     buf: np.ndarray
     eout: np.ndarray
@@ -116,7 +119,8 @@ def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
 def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK) -> Work:
     """A :class:`Work` for a model, with gather buffers for ``chunks`` threads and blocks of
     ``block`` elements (and nodes)."""
-    return Work(np.zeros((n_nodes, 3)), np.zeros((3, n_elems + 1)), np.zeros((chunks, 8, block)),
+    return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros((3, n_elems + 1)),
+                np.zeros((chunks, 8, block)),
                 np.zeros((max(1, -(-n_elems // block)), 8)),
                 np.zeros((max(1, -(-n_nodes // block)), 5)))
 
@@ -150,11 +154,11 @@ def plain_block(elems, ef, buf, lo, hi):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def full_block(elems, ef, buf, lo, hi, record, eout, b):
+def full_block(elems, ef, tension, buf, lo, hi, record, eout, b):
     """f_e of the elements lo..hi-1 with the damper and the records: a straight loop that
-    keeps each element's strain energy (buffer row 6), tension (row 7) and damping power
-    (row 3), then their sums in element order: eout[b, 0] strain energy (record steps),
-    eout[b, 1] max tension (record steps), eout[b, 2] damping power."""
+    keeps each element's strain energy (buffer row 6), tension (``tension``) and damping
+    power (row 3), then their sums in element order: eout[b, 0] strain energy (record
+    steps), eout[b, 1] max tension (record steps), eout[b, 2] damping power."""
     inv_rest, ea, cdamp, damped = elems.inv_rest, elems.ea, elems.cdamp, elems.damped
     n = hi - lo
     for k in range(n):
@@ -168,7 +172,7 @@ def full_block(elems, ef, buf, lo, hi, record, eout, b):
             n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
             buf[3, k] = (n_tot - n_el) * ldot  # damping power
         buf[6, k] = 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
-        buf[7, k] = n_tot
+        tension[e] = n_tot
         c = n_tot * inv
         ef[0, e] = c * dx
         ef[1, e] = c * dy
@@ -179,7 +183,7 @@ def full_block(elems, ef, buf, lo, hi, record, eout, b):
     for k in range(n):
         if record:
             se += buf[6, k]
-            tmax = max(tmax, buf[7, k])
+            tmax = max(tmax, tension[lo + k])
         if damped:
             pdamp += buf[3, k]
     eout[b, 0] = se
@@ -188,9 +192,10 @@ def full_block(elems, ef, buf, lo, hi, record, eout, b):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def element_block(elems, links, pos, vel, ef, buf, b, record, eout):
-    """Element block b: its force vectors into ``ef``, its sums into ``eout[b]`` (see
-    Work); ``buf`` (8, block) is the chunk's gather buffer."""
+def element_block(elems, links, pos, vel, work, buf, b, record):
+    """Element block b: its force vectors into ``work.ef``, its sums into ``work.eout[b]``;
+    ``buf`` (8, block) is the chunk's gather buffer."""
+    ef, eout = work.ef, work.eout
     m = elems.inv_rest.shape[0]
     lo = b * buf.shape[1]
     hi = min(lo + buf.shape[1], m)
@@ -203,7 +208,7 @@ def element_block(elems, links, pos, vel, ef, buf, b, record, eout):
         return
     if elems.damped:
         gather_ends(links.first, links.second, vel, buf, 3, lo, hi)
-    full_block(elems, ef, buf, lo, hi, record, eout, b)
+    full_block(elems, ef, work.tension, buf, lo, hi, record, eout, b)
 
 
 @njit(cache=True, parallel=True)
@@ -214,7 +219,7 @@ def element_threads(elems, links, pos, vel, work, record):
     for c in prange(nc):
         buf = work.buf[c]
         for b in range(nb * c // nc, nb * (c + 1) // nc):
-            element_block(elems, links, pos, vel, work.ef, buf, b, record, work.eout)
+            element_block(elems, links, pos, vel, work, buf, b, record)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -277,21 +282,21 @@ def sum_blocks(eout):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def element_forces(elems, links, pos, vel, work, record, threads=None):
+def element_forces(elems, links, pos, vel, work, record, threads):
     """Every element's force vector at x_n into ``work.ef``. Returns (strain energy [J] and
     max tension [N] on record steps, damping power [W]). ``threads`` None: one thread (numba
     compiles no thread kernel); otherwise each chunk of the workspace runs on a thread."""
     if threads is None:
         buf = work.buf[0]
         for b in range(work.eout.shape[0]):
-            element_block(elems, links, pos, vel, work.ef, buf, b, record, work.eout)
+            element_block(elems, links, pos, vel, work, buf, b, record)
     else:
         element_threads(elems, links, pos, vel, work, record)
     return sum_blocks(work.eout)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def node_forces(links, work, threads=None):
+def node_forces(links, work, threads):
     """``work.force`` (n, 3) = the element forces of ``work.ef`` summed per node."""
     n = work.force.shape[0]
     size = work.buf.shape[2]
@@ -300,3 +305,30 @@ def node_forces(links, work, threads=None):
             node_block(links, work.ef, work.force, b * size, min(n, (b + 1) * size))
     else:
         node_threads(links, work.ef, work.force, work.buf.shape[0])
+
+
+@njit(cache=True)
+def internal_forces(elems, links, pos, vel, work, record):
+    """One thread: every element's force vector and tension (``work.ef``, ``work.tension``)
+    and their sums per node (``work.force``) at the given positions. Returns (strain energy
+    [J], max tension [N], damping power [W]); the first two on ``record`` only, which also
+    writes the tensions. (The same compiled passes as the step loop's on one thread: the
+    thread argument is an explicit None, and ``record`` comes from Python, never a
+    literal, which would compile them again.)"""
+    se, tmax, pdamp = element_forces(elems, links, pos, vel, work, record, None)
+    node_forces(links, work, None)
+    return se, tmax, pdamp
+
+
+def eval_elements(elems, pos, vel, force, tension, want_energy):
+    """Tension-only truss forces of every element added into ``force`` (n, 3), tensions into
+    ``tension`` (m,) unless it is empty (Python entry for tests and studies: builds the
+    :class:`Links` and a :class:`Work`). Returns (strain energy [J] if ``want_energy`` else
+    0, max tension [N] if ``want_energy`` else 0, damping power [W])."""
+    work = make_work(len(pos), len(elems.nodes))
+    se, tmax, pdamp = internal_forces(elems, make_links(elems.nodes, len(pos)), pos, vel, work,
+                                      True)
+    force += work.force
+    if len(tension):
+        tension[:] = work.tension
+    return (se, tmax, pdamp) if want_energy else (0.0, 0.0, pdamp)

@@ -29,8 +29,8 @@ from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, fr
                                  hub_centre, inv_inertia, mul, place_body, rotation,
                                  spatial_inertia)
 from spinweb_fe.fe.rupture import record_strength
-from spinweb_fe.fe.step import (NodeMotion, checks_strength, element_pass, eval_elements,
-                                record_arms, record_probes)
+from spinweb_fe.fe.step import (NodeMotion, checks_strength, element_pass, probe_positions,
+                                probe_velocities, record_arms)
 from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 from spinweb_fe.fe.vectors import I_GRAVITY, I_HUB, node_momenta, plane_stats
 
@@ -249,8 +249,7 @@ def after_step(model, state, t_next):
                    state.node_inv_mass, 0.0, t_next, state.strength.broken)
     if cs.front.sum() != before:
         detach(model.body, nodes, hub, coil, cs, rs)
-    if coil.bundle_code > 0:
-        open_bundles(coil, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
+    open_bundles(model.bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
 
 
 @njit(cache=True)
@@ -269,7 +268,7 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
     vprobe = np.zeros((rec.probes.shape[0], 3))
     has_coil = coil.level_nodes.shape[0] > 0
     mv = NodeMotion(pos, vel, state.node_mass, state.node_inv_mass)
-    nrec = 0
+    nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
         step = state.step[0]
         record = step % rec.every == 0
@@ -277,13 +276,13 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
         se, tmax, pdamp = element_pass(elems, model.links, strength, state.strength, pos, vel,
                                        work, record, dt, threads)
         if has_coil:
-            gather_bundles(coil, state.coil, force)
+            gather_bundles(model.bundles, state.coil, force)
         R = rotation(rs.quaternion)
         Fb, Tb, torque, w_old, w3_old, V, Pi, Fg, Tg = body_kick(model, law, state, pos,
                                                                  force, t, dt, R)
         hull = hull_of(rs, R, w_old, dt)
         if record:
-            record_probes(rec, nrec, pos, vel, vprobe, True)
+            probe_positions(rec, nrec, pos, vel, vprobe)
             record_arms(coil, state.coil, rec.arm_table[nrec], t)
             if has_strength:
                 record_strength(state.strength, rec.strength_table[nrec])
@@ -293,7 +292,7 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
         dcontact, wg = integrate_free(nodes, hub, mv, force, model.env, t, hull, rs, R, V,
                                       Pi, Fb, Tb, dt, record, sums)
         if has_coil:
-            scatter_bundles(coil, state.coil, pos, vel)
+            scatter_bundles(model.bundles, state.coil, pos, vel)
         w_new = inv_inertia(rs, R, Pi)
         w3_new = dot(R[:, 2], w_new)
         incr[0] = torque * dt * 0.5 * (w3_old + w3_new)  # work of M about b3
@@ -310,7 +309,7 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
                            torque, ke, se, tmax, totals, incr)
             if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
                 return 1, nrec
-            record_probes(rec, nrec, pos, vel, vprobe, False)
+            probe_velocities(rec, nrec, vel, vprobe)
             nrec += 1
         rs.velocity[:] = V  # the drift: X += dt V, the free rotation with Pi fixed
         rs.momentum[:] = Pi
@@ -332,16 +331,14 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
 
 
 @njit(cache=True)
-def start_free(model, law, state, dt):
+def start_free(model, law, state, force, dt):
     """v_{-1/2} = v_0 - dt/2 a_0 for the free nodes and the body (V, Pi); a prescribed rate
     takes the law's body-axis rate at -dt/2."""
-    elems, coil, env = model.elements, model.coil, model.env
+    coil, env = model.coil, model.env
     pos, vel = state.node_pos, state.node_vel
     rs = state.rigid
-    force = np.zeros((pos.shape[0], 3))
-    eval_elements(elems, pos, vel, force, np.zeros(elems.nodes.shape[0]), False)
     if coil.level_nodes.shape[0] > 0:
-        gather_bundles(coil, state.coil, force)
+        gather_bundles(model.bundles, state.coil, force)
     R = rotation(rs.quaternion)
     F, T = body_loads(model.hub, coil, state.coil, rs, pos, force)
     e = vertical(env, 0.0)
@@ -368,5 +365,5 @@ def start_free(model, law, state, dt):
     else:
         rs.momentum[:] = rs.momentum - 0.5 * dt * value * b3
     if coil.level_nodes.shape[0] > 0:
-        scatter_bundles(coil, state.coil, pos, vel)
+        scatter_bundles(model.bundles, state.coil, pos, vel)
     state.hub.rate[0] = dot(b3, inv_inertia(rs, R, rs.momentum))

@@ -102,6 +102,7 @@ class Kernel(NamedTuple):
     nodes: Nodes
     hub: Hub
     coil: Coil
+    bundles: object  # the coil when it has bundles, else None (numba compiles none of them)
     strength: Strength
     body: Body
     env: Environment
@@ -155,8 +156,9 @@ class Model:
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
-        return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, strength,
-                      self.body, self.env)
+        bundles = self.coil if self.coil.bundle_code > 0 else None
+        return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, bundles,
+                      strength, self.body, self.env)
 
     @property
     def free_hub(self) -> bool:

@@ -35,7 +35,6 @@ from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
-from spinweb_fe.fe.law import add_pair, damped_tension, lengthening, stretch
 from spinweb_fe.fe.rupture import record_strength, strength_pass
 from spinweb_fe.fe.vectors import fixed_hub_row, node_momenta, plane_stats
 
@@ -74,57 +73,6 @@ class Recording(NamedTuple):
     probe_vel: np.ndarray
     arm_table: np.ndarray
     strength_table: np.ndarray
-
-
-@njit(cache=True, error_model="numpy")
-def accumulate_elements(elems, pos, vel, force, lo, hi, record, tension):
-    """The plain scatter loop: tension-only element forces of elements lo..hi-1 added into
-    ``force`` (n,3); element tensions written into ``tension`` unless it is empty. Frames,
-    the start of a run and the tests use it; the step loop takes the same law through
-    :mod:`spinweb_fe.fe.forces` (element vectors, then node sums: the same forces bit for
-    bit, vectorised and threaded).
-
-    1/L0 is stored, and the tension-only rule is a branch-free max on the strain (a web
-    spinning unstretched sits on the slack/taut kink, where a real branch is mispredicted
-    about half the time). Zero-length elements give zero force (the length gets 1e-300 added
-    under the root). Returns (strain energy [J], max tension [N]) on record steps, and the
-    damping power [W].
-    """
-    elem_nodes = elems.nodes
-    inv_rest = elems.inv_rest
-    ea = elems.ea
-    cdamp = elems.cdamp
-    damped = elems.damped
-    se = 0.0
-    tmax = 0.0
-    pdamp = 0.0
-    write_tension = tension.shape[0] > 0
-    for e in range(lo, hi):
-        i = elem_nodes[e, 0]
-        j = elem_nodes[e, 1]
-        dx, dy, dz, inv, strain = stretch(pos, i, j, inv_rest[e])  # N = EA max(eps, 0)
-        n_el = ea[e] * strain
-        n_tot = n_el
-        if damped:  # N_d = c dL/dt while taut, total tension never negative
-            ldot = lengthening(vel, i, j, dx, dy, dz, inv)
-            n_tot = damped_tension(n_el, strain, cdamp[e], ldot)
-            pdamp += (n_tot - n_el) * ldot
-        if record:
-            se += 0.5 * n_el * strain / inv_rest[e]  # U = EA eps^2 L0 / 2
-            tmax = max(tmax, n_tot)
-        if write_tension:
-            tension[e] = n_tot
-        add_pair(force, i, j, n_tot * inv, dx, dy, dz)
-    return se, tmax, pdamp
-
-
-@njit(cache=True)
-def eval_elements(elems, pos, vel, force, tension, want_energy):
-    """Tension-only truss forces of every element added into ``force`` (n,3); tensions into
-    ``tension`` (m,). Returns (strain energy [J] if want_energy else 0, max tension [N],
-    damping power [W]). The step loop's element law, for frames and tests."""
-    return accumulate_elements(elems, pos, vel, force, 0, elems.nodes.shape[0], want_energy,
-                               tension)
 
 
 class NodeMotion(NamedTuple):
@@ -300,17 +248,22 @@ def node_pass(nodes, hub, state, force, w_old, w_new, dt, nout, sums, record, th
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def record_probes(rec, k, pos, vel, vprobe, before):
-    """Probe positions x_n and velocities into row k: ``before`` the node pass keeps
-    v_{n-1/2} in ``vprobe``; after it the row gets the mean with v_{n+1/2}."""
+def probe_positions(rec, k, pos, vel, vprobe):
+    """Probe positions x_n into row k, before the node pass; v_{n-1/2} kept in ``vprobe``."""
     probes = rec.probes
     for p in range(probes.shape[0]):
         for d in range(3):
-            if before:
-                vprobe[p, d] = vel[probes[p], d]
-                rec.probe_pos[k, p, d] = pos[probes[p], d]
-            else:
-                rec.probe_vel[k, p, d] = 0.5 * (vprobe[p, d] + vel[probes[p], d])
+            vprobe[p, d] = vel[probes[p], d]
+            rec.probe_pos[k, p, d] = pos[probes[p], d]
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def probe_velocities(rec, k, vel, vprobe):
+    """Probe velocities of row k after the node pass: the mean of v_{n-1/2} and v_{n+1/2}."""
+    probes = rec.probes
+    for p in range(probes.shape[0]):
+        for d in range(3):
+            rec.probe_vel[k, p, d] = 0.5 * (vprobe[p, d] + vel[probes[p], d])
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -342,15 +295,14 @@ def record_arms(coil, cs, table, t):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def coil_step(coil, elems, nodes, state, t_next):
+def coil_step(coil, bundles, elems, nodes, state, t_next):
     """After a step: release the fronts that the free parts pull off the hub (broken
     elements pull nothing), then open the bundles that are due."""
     cs = state.coil
     state.hub.inertia[0] = release_fronts(coil, cs, elems, nodes, state.node_pos,
                                           state.node_mass, state.node_inv_mass,
                                           state.hub.inertia[0], t_next, state.strength.broken)
-    if coil.bundle_code > 0:
-        open_bundles(coil, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
+    open_bundles(bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
 
 
 @njit(cache=True)
@@ -379,7 +331,7 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     vprobe = np.zeros((rec.probes.shape[0], 3))
     totals = state.totals
     has_coil = coil.level_nodes.shape[0] > 0
-    nrec = 0
+    nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
         step = state.step[0]
         record = step % rec.every == 0
@@ -389,12 +341,12 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
         tau = moment_of(pos, force, hub.tied_idx)
         if has_coil:
             tau += held_moment(coil, state.coil, pos, force)
-            gather_bundles(coil, state.coil, force)
+            gather_bundles(model.bundles, state.coil, force)
         w_old = state.hub.rate[0]
         j_eff = state.hub.inertia[0]
         torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
         if record:
-            record_probes(rec, nrec, pos, vel, vprobe, True)
+            probe_positions(rec, nrec, pos, vel, vprobe)
             record_arms(coil, state.coil, rec.arm_table[nrec], t)
             if has_strength:
                 record_strength(state.strength, rec.strength_table[nrec])
@@ -407,7 +359,7 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
         w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, work.nout, sums,
                                     record, threads)
         if has_coil:
-            scatter_bundles(coil, state.coil, pos, vel)
+            scatter_bundles(model.bundles, state.coil, pos, vel)
         incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
         incr[1] = pdamp * dt
         incr[2] = dcontact
@@ -420,7 +372,7 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
                               j_eff, vec[nrec])
             if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
                 return 1, nrec
-            record_probes(rec, nrec, pos, vel, vprobe, False)
+            probe_velocities(rec, nrec, vel, vprobe)
             nrec += 1
         state.hub.angle[0] = theta + dt * w_new
         state.hub.rate[0] = w_new
@@ -432,20 +384,19 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
         place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, state.hub.angle[0], w_new)
         if has_coil:
             place_held(coil, state.coil, pos, vel, state.hub.angle[0], w_new)
-            coil_step(coil, elems, nodes, state, (step + 1) * dt)
+            coil_step(coil, model.bundles, elems, nodes, state, (step + 1) * dt)
     return 0, nrec
 
 
 @njit(cache=True)
-def start_half_step(model, law, state, dt):
-    """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0."""
-    elems, hub, coil = model.elements, model.hub, model.coil
+def start_half_step(model, law, state, force, dt):
+    """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0;
+    ``force`` (n, 3): the internal forces at x_0 (fe.forces.internal_forces)."""
+    hub, coil = model.hub, model.coil
     pos = state.node_pos
     vel = state.node_vel
-    force = np.zeros((pos.shape[0], 3))
-    eval_elements(elems, pos, vel, force, np.zeros(elems.nodes.shape[0]), False)
     if coil.level_nodes.shape[0] > 0:
-        gather_bundles(coil, state.coil, force)
+        gather_bundles(model.bundles, state.coil, force)
     for i in range(pos.shape[0]):
         for d in range(3):
             vel[i, d] -= 0.5 * dt * force[i, d] * state.node_inv_mass[i]
@@ -456,4 +407,4 @@ def start_half_step(model, law, state, dt):
     else:
         state.hub.rate[0] -= 0.5 * dt * (value + tau) / state.hub.inertia[0]
     if coil.level_nodes.shape[0] > 0:
-        scatter_bundles(coil, state.coil, pos, vel)
+        scatter_bundles(model.bundles, state.coil, pos, vel)

@@ -15,7 +15,7 @@ import numpy as np
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe import free_step, step
 from spinweb_fe.fe.control import Control
-from spinweb_fe.fe.forces import make_work
+from spinweb_fe.fe.forces import internal_forces, make_work
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.state import State
 from spinweb_fe.fe.vectors import VEC_WIDTH
@@ -58,12 +58,17 @@ class RunResult:
     memory: dict = field(default_factory=dict)
 
 
-def start(model: Model, control: Control, state: State, dt: float):
-    """Shift v_0, omega_0 back half a step (second-order start of central differences)."""
+def start(model: Model, control: Control, state: State, dt: float, work=None):
+    """Shift v_0, omega_0 back half a step (second-order start of central differences);
+    ``work``: the force passes' scratch (made here if not given)."""
+    if work is None:
+        work = make_work(model.n_nodes, model.n_elems)
+    record = False  # from Python: typed bool, the same compiled passes as current_tension's
+    internal_forces(model.elements, model.links, state.node_pos, state.node_vel, work, record)
     if model.free_hub:
-        free_step.start_free(model.kernel, control.kernel, state, dt)
+        free_step.start_free(model.kernel, control.kernel, state, work.force, dt)
     else:
-        step.start_half_step(model.kernel, control.kernel, state, dt)
+        step.start_half_step(model.kernel, control.kernel, state, work.force, dt)
 
 
 def records_vectors(model: Model, state: State) -> bool:
@@ -75,10 +80,13 @@ def records_vectors(model: Model, state: State) -> bool:
                 or np.any(state.node_vel[:, 2] != 0.0))
 
 
-def current_tension(model: Model, pos, vel, broken=None):
-    """(m,) element tensions [N] at the given positions (0 in the ``broken`` elements)."""
-    t = np.zeros(model.n_elems)
-    step.eval_elements(model.elements, pos, vel, np.zeros((model.n_nodes, 3)), t, False)
+def current_tension(model: Model, pos, vel, broken=None, work=None):
+    """(m,) element tensions [N] at the given positions (0 in the ``broken`` elements);
+    ``work``: the force passes' scratch to use (made here if not given)."""
+    if work is None:
+        work = make_work(model.n_nodes, model.n_elems)
+    internal_forces(model.elements, model.links, pos, vel, work, True)
+    t = work.tension.copy()
     if broken is not None and len(broken):
         t[broken] = 0.0
     return t
@@ -223,7 +231,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
                      records_vectors(model, state))
     t_compile = time.perf_counter()
     if resume is None:
-        start(model, control, state, dt)
+        start(model, control, state, dt, chunks.work)
     chunks.advance(state.copy(), dt, 0)  # compile / load the loop outside the timed part
     compile_s = time.perf_counter() - t_compile
     for r in recorders:
@@ -259,7 +267,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if frame_every and (n % frame_every == 0 or n == n_total):
             broken = state.strength.broken.copy() if model.strength.rupture else None
             frame = Frame(n * dt, state.node_pos.copy(), state.node_vel.copy(),
-                          current_tension(model, state.node_pos, state.node_vel, broken), broken)
+                          current_tension(model, state.node_pos, state.node_vel, broken,
+                                          chunks.work), broken)
             for r in recorders:
                 r.frame(frame)
             frames += 1
