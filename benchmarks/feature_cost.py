@@ -5,9 +5,9 @@
 Scene: the flat spinning QuadQuad web of benchmarks/throughput.py (S = 100 m, Zylon, 10 kg
 corners, every node at 2 pi rad/s, unstretched), one thread, the same dt for every variant.
 
-- ``floor``: ``reference_advance`` below, a numba loop with the production element math
-  (tension-only, 1/L0 stored, branch-free max, error_model='numpy') and the node update
-  v += dt f/m, x += dt v, f = 0, and nothing else (no hub, contact, control, damping, records).
+- ``floor``: ``reference_advance`` below, a numba loop of the production force passes
+  (fe.forces: element force vectors, node sums; one thread, no records) and the node update
+  v += dt f/m, x += dt v, and nothing else (no hub, contact, control, damping, records).
 - ``bare``: the production loop (``run.loop.simulate``) on the same scene with every feature
   absent: no tied nodes, no contact, law 'free', no damping, one history row per 256 x 1000
   steps (i.e. almost never), no frames.
@@ -16,6 +16,13 @@ corners, every node at 2 pi rad/s, unstretched), one thread, the same dt for eve
   control (torque feedback law), damping (5 % of critical), history every step, frames every
   100 steps to a recorder (positions, velocities and tensions copied, as the writer
   gets them).
+
+A second table prices the stowage on the paper's coiled web (cases/paper_free_web.toml,
+3 220 elements, its first 0.2 s, one thread, frames off): the coil loose on the hub (contact
+only), held (released by the peel fronts) and held in bundles (two-stage). The three deploy
+differently in that time, so the differences hold the physics (contact events, releases)
+as well as the machinery; the held coil's per-step work is the hub moment and placement of
+the held nodes and the peel test of each arm.
 
 Production variants are timed by wall time of ``simulate`` less its compile/cache-load part
 (i.e. with the Python orchestration between chunks and the frame callbacks); the loop-only
@@ -38,54 +45,35 @@ from throughput import RHO, A, E, load_average, machine
 
 from meshgen.flat import flat_quadquad
 from spinweb_fe.fe.control import free, make_control
+from spinweb_fe.fe.forces import element_forces, make_work, node_forces
 from spinweb_fe.fe.model import build_model, choose_dt, make_hub
 from spinweb_fe.fe.state import initial_state
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.loop import Schedule, simulate
 
-OUT = Path(__file__).resolve().parent / "results"
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "benchmarks" / "results"
 
 
 @njit(cache=True, error_model="numpy")
-def reference_elements(pos, elem_nodes, inv_rest, ea, force):
-    """The production element math and nothing else: N = EA max(L/L0 - 1, 0), f = N u."""
-    for e in range(elem_nodes.shape[0]):
-        i = elem_nodes[e, 0]
-        j = elem_nodes[e, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        ln = np.sqrt(dx * dx + dy * dy + dz * dz + 1e-300)
-        inv = 1.0 / ln
-        c = ea[e] * max(ln * inv_rest[e] - 1.0, 0.0) * inv
-        fx = c * dx
-        fy = c * dy
-        fz = c * dz
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
-
-
-@njit(cache=True)
 def reference_nodes(pos, vel, force, inv_mass, dt):
-    """v += dt f/m, x += dt v, f = 0 (no tied-node test, no contact, no records)."""
-    for i in range(pos.shape[0]):
+    """v += dt f/m, x += dt v for every node (no tied-node test, no contact, no records)."""
+    for q in range(pos.shape[0]):
+        i = np.uint64(q)
         im = inv_mass[i]
         for d in range(3):
             vel[i, d] += dt * force[i, d] * im
             pos[i, d] += dt * vel[i, d]
-            force[i, d] = 0.0
 
 
 @njit(cache=True)
-def reference_advance(pos, vel, force, inv_mass, elem_nodes, inv_rest, ea, dt, nsteps):
-    """The cost floor: nsteps of element pass + node pass."""
+def reference_advance(elements, links, pos, vel, inv_mass, work, dt, nsteps):
+    """The cost floor: nsteps of the production force passes (element vectors, node sums;
+    one thread, no records) and the bare node update above."""
     for _ in range(nsteps):
-        reference_elements(pos, elem_nodes, inv_rest, ea, force)
-        reference_nodes(pos, vel, force, inv_mass, dt)
+        element_forces(elements, links, pos, vel, work, False, None)
+        node_forces(links, work, None)
+        reference_nodes(pos, vel, work.force, inv_mass, dt)
 
 
 def scene(mesh_width, variant):
@@ -140,14 +128,51 @@ class FrameCount(Recorder):
 
 def run_floor(mesh_width, dt, steps):
     model, _, state = scene(mesh_width, "bare")
-    force = np.zeros_like(state.node_pos)
-    args = (state.node_pos, state.node_vel, force, model.nodes.inv_mass, model.elements.nodes,
-            model.elements.inv_rest, model.elements.ea, dt)
+    args = (model.elements, model.links, state.node_pos, state.node_vel, model.nodes.inv_mass,
+            make_work(model.n_nodes, model.n_elems), dt)
     reference_advance(*args, 1)  # compile / cache load
     t0 = time.perf_counter()
     reference_advance(*args, steps)
     s = time.perf_counter() - t0
     return {"wall_s": s, "loop_s": s, "steps": steps, "elements": model.n_elems, "frames": 0}
+
+
+STOWAGE = {"loose coil": ["stowage.coil='loose'"], "held coil": [],
+           "held coil, bundles": ["stowage.bundle='until_length'", "stowage.bundle_release=0.95"]}
+
+
+def run_stowage(name, end):
+    """One run of the coiled paper web with the given stowage (wall less compile)."""
+    from spinweb_fe import case as case_mod
+    from spinweb_fe.case.scene import prepare
+
+    cs = case_mod.load(ROOT / "cases" / "paper_free_web.toml",
+                       [f"time.end={end}", "output.frame_dt=0", *STOWAGE[name]])
+    _, model, control, state, dt = prepare(cs)
+    t0 = time.perf_counter()
+    res = simulate(model, control, state, dt, Schedule(end, cs.output.history_dt), threads=1,
+                   energy_limit=math.inf)
+    wall = time.perf_counter() - t0 - res.compile_s
+    return {"wall_s": wall, "loop_s": res.loop_s, "steps": res.steps,
+            "elements": model.n_elems}
+
+
+def stowage_costs(end, repeat):
+    """ns per element-update of the coiled web under each stowage (fastest of ``repeat``)."""
+    best = {}
+    for name in STOWAGE:
+        run_stowage(name, 0.002)  # compile / load
+    for _ in range(repeat):
+        for name in STOWAGE:
+            r = run_stowage(name, end)
+            if name not in best or r["wall_s"] < best[name]["wall_s"]:
+                best[name] = r
+    rows = []
+    for name, r in best.items():
+        ns = 1e9 * r["wall_s"] / (r["steps"] * r["elements"])
+        rows.append({"variant": name, "ns_per_element_update": ns, **r})
+        print(f"coiled web {name:20s} {ns:6.2f} ns/el-update", flush=True)
+    return {"case": "paper_free_web", "end_s": end, "rows": rows}
 
 
 def main(argv=None):
@@ -157,6 +182,8 @@ def main(argv=None):
                     help="element-updates per timed run (steps = updates / elements)")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--cfl", type=float, default=0.8)
+    ap.add_argument("--stowage-end", type=float, default=0.2,
+                    help="simulated seconds of the coiled-web stowage runs")
     args = ap.parse_args(argv)
     out = {"machine": machine(), "repeat": args.repeat, "sizes": {}}
     for w in args.mesh_width:
@@ -190,6 +217,7 @@ def main(argv=None):
                   f"  vs bare {row['vs_bare_pct']:+6.1f} %", flush=True)
         out["sizes"][str(w)] = {"mesh_width": w, "elements": model.n_elems, "dt": dt,
                                 "steps": steps, "load_1min_per_round": loads, "rows": rows}
+    out["stowage"] = stowage_costs(args.stowage_end, min(args.repeat, 3))
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "feature_cost.json").write_text(json.dumps(out, indent=1))
     return out

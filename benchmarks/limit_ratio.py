@@ -9,8 +9,10 @@ the same web, cable and step as the C problem R3) and the C variants ``anchor`` 
 general-connectivity kernel) and ``soa`` (a plain scalar loop). Each spinweb sample is the
 fastest of ``--repeat`` loops of one process; each C sample the best of its repetitions.
 The medians over the rounds and their ratios go to ``benchmarks/results/limit_ratio.json``
-with the CPU model, family/model and ISA and the load before every sample; compare numbers
-only within one file. Without gcc or the limit folder it says so and exits 2.
+with the CPU model, family/model and ISA and the load before every sample, and the same
+summary into ``benchmarks/results/throughput.json`` (key ``limit_ratio``), with the bytes
+each loop moves per element-update (:func:`traffic`); compare numbers only within one file.
+Without gcc or the limit folder it says so and exits 2.
 """
 
 from __future__ import annotations
@@ -25,11 +27,29 @@ import tempfile
 import time
 from pathlib import Path
 
-from throughput import load_average, machine, measure
+from throughput import load_average, machine, measure, spinning_web
 
 ROOT = Path(__file__).resolve().parent.parent
 LIMIT = ROOT.parent / "shared" / "limit" / "limit.c"
 OUT = ROOT / "benchmarks" / "results" / "limit_ratio.json"
+THROUGHPUT = ROOT / "benchmarks" / "results" / "throughput.json"
+#: bytes per element-update of the C ``anchor`` loop (its README's layout: one int32 slot and
+#: 1/L0 per element, 12 B; per node x and v read and written and 1/m, 104 B, x 0.5 nodes per
+#: element; no force array: the node update is fused into the sweep)
+C_ANCHOR_BYTES = 12 + 104 * 0.5
+
+
+def traffic(model) -> dict:
+    """Bytes each pass of spinweb's step streams per element-update (arrays read or written
+    once per step; the position gathers and the second read of an element's force vector hit
+    lines the neighbours brought in, so they count once)."""
+    m, n = model.n_elems, model.n_nodes
+    slots = model.links.node_elems.shape[1]
+    elem = 8 + 8 + 8 + 24 + 24 * n / m  # ends, 1/L0, EA, force vector written, x read
+    sums = 24 + (4 * slots + 24) * n / m  # force vectors read, incidence, node force written
+    update = (24 + 8 + 48 + 48) * n / m  # force, 1/m, v and x read and written
+    return {"element_pass": elem, "node_sums": sums, "node_update": update,
+            "total": elem + sums + update, "c_anchor_total": C_ANCHOR_BYTES}
 MESH_WIDTH = {"fine": 0.5, "coarse": 2.5}
 
 
@@ -96,10 +116,18 @@ def main(argv=None) -> int:
            "speedup_2_threads": {w: med[f"{w}_2t"] / med[f"{w}_1t"]
                                  for w in ("spinweb", "anchor", "soa")},
            "spinweb_bytes_per_element": header.get("spinweb_bytes_per_element"),
+           "bytes_per_element_update": traffic(spinning_web(mw)[0]),
            "c_headers": {k: v for k, v in header.items() if k != "spinweb_bytes_per_element"},
            "date": time.strftime("%Y-%m-%d %H:%M %Z")}
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(out, indent=1))
+    summary = {k: out[k] for k in ("machine", "mesh", "steps", "rounds",
+                                   "median_element_updates_per_s", "ratio_spinweb_to_anchor",
+                                   "ratio_spinweb_to_soa", "speedup_2_threads",
+                                   "bytes_per_element_update", "date")}
+    through = json.loads(THROUGHPUT.read_text()) if THROUGHPUT.is_file() else {}
+    through["limit_ratio"] = summary
+    THROUGHPUT.write_text(json.dumps(through, indent=1))
     print(json.dumps({k: out[k] for k in ("median_element_updates_per_s",
                                           "ratio_spinweb_to_anchor", "speedup_2_threads")},
                      indent=1))

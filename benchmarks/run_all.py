@@ -1,11 +1,13 @@
 """All benchmarks, one after the other (``make bench``); results in benchmarks/results/.
 
-    python benchmarks/run_all.py [--only throughput ramp feature_cost profile scaling wp]
+    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp]
                                  [--wait-quiet 30]
 
 - throughput.json: the bare spinning web at W = 2.5 m (3280 elements) and W = 0.5 m
   (80 400 elements) and the full-feature web, on 1 and 2 threads (fastest of 5), and the cold
   compile time (empty NUMBA_CACHE_DIR, in a fresh process);
+- limit_ratio.json (and the ``limit_ratio`` key of throughput.json): spinweb's bare loop
+  against the C loops of ../shared/limit, interleaved, 1 and 2 threads (limit_ratio.py);
 - ramp_run.json: cases/paper_ramp_web.toml (10 s at the README's accuracy: cfl 0.3 with 1
   and with 2 elements per segment; frames and results.h5 written) on 2 threads and 1 thread,
   wall time per run;
@@ -67,6 +69,11 @@ def throughput(wait):
            "note": "compile_s of a run is the first call in its process (cache load); "
                    "cold_compile_s compiles the loop with an empty NUMBA_CACHE_DIR "
                    "(threads 1: serial kernels; threads 2 adds the parallel ones)"}
+    old = OUT / "throughput.json"
+    if old.is_file():  # keep the C comparison of limit_ratio.py
+        limit = json.loads(old.read_text()).get("limit_ratio")
+        if limit:
+            out["limit_ratio"] = limit
     (OUT / "throughput.json").write_text(json.dumps(out, indent=1))
 
 
@@ -96,7 +103,7 @@ def ramp(wait):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parts = ["throughput", "ramp", "feature_cost", "profile", "scaling", "wp"]
+    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling", "wp"]
     ap.add_argument("--only", nargs="+", choices=parts, default=parts)
     ap.add_argument("--wait-quiet", type=float, default=30.0,
                     help="seconds to wait for a 1-minute load below 0.5 before each part")
@@ -111,7 +118,8 @@ def main(argv=None):
             ramp(wait)
         else:
             wait_for_quiet(max_wait=wait)
-            script = {"feature_cost": "feature_cost.py", "profile": "profile_loop.py",
+            script = {"limit": "limit_ratio.py", "feature_cost": "feature_cost.py",
+                      "profile": "profile_loop.py",
                       "scaling": "scaling.py", "wp": "work_precision.py"}[part]
             print(bench(script), flush=True)
 

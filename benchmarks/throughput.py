@@ -176,10 +176,14 @@ def measure(problem, mesh_width, end, threads, cfl=0.9, history_dt=1e-3, repeat=
 
 
 def model_bytes(model):
-    """Bytes of the arrays the step loop touches (model + state + workspace)."""
+    """Bytes of the arrays the step loop touches (model, incidence, state positions and
+    velocities, the force passes' workspace)."""
+    from spinweb_fe.fe.forces import make_work
+
     n = model.n_nodes
-    arrays = (*model.nodes, *model.elements[:-1])
-    return sum(a.nbytes for a in arrays) + n * 3 * 8 * 3  # + pos, vel, force
+    arrays = (*model.nodes, *model.elements[:-1], *model.links,
+              *make_work(n, model.n_elems))
+    return sum(a.nbytes for a in arrays) + n * 3 * 8 * 2  # + pos, vel
 
 
 def main(argv=None):

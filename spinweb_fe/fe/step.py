@@ -167,7 +167,9 @@ def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, r
         out[0], out[2] = spin_sums(mv, lo, hi)
     if kick(mv, force, contact, r0, dt, lo, hi):  # v_{n+1/2} = v_{n-1/2} + dt f / m
         for i in range(lo, hi):
-            if contact[i] and inv_mass[i] > 0.0:
+            px = pos[i, 0] + dt * vel[i, 0]  # predicted position: only nodes heading
+            py = pos[i, 1] + dt * vel[i, 1]  # inside the hub cylinder need the call
+            if contact[i] and inv_mass[i] > 0.0 and px * px + py * py < r0 * r0:
                 omega, d = contact_node(i, pos, vel, force, node_mass[i], r0, hub.friction,
                                         j_eff, omega, dw_force, dt)
                 diss += d
