@@ -70,8 +70,9 @@ def reference_nodes(pos, vel, force, inv_mass, dt):
 def reference_advance(elements, links, pos, vel, inv_mass, work, dt, nsteps):
     """The cost floor: nsteps of the production force passes (element vectors, node sums;
     one thread, no records) and the bare node update above."""
+    record = nsteps < 0  # False, but not a literal: the same compiled pass as the loop's
     for _ in range(nsteps):
-        element_forces(elements, links, pos, vel, work, False, None)
+        element_forces(elements, links, pos, vel, work, record, None)
         node_forces(links, work, None)
         reference_nodes(pos, vel, work.force, inv_mass, dt)
 

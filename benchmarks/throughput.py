@@ -96,7 +96,7 @@ def load_average():
 
 
 def cpu_family():
-    """'family/model' of the CPU (AMD 25/17 is Zen 4, 25/1 Zen 3), '' if unknown."""
+    """'family/model' of the CPU (AMD 26/2 is Zen 5, 25/17 Zen 4, 25/1 Zen 3), '' if unknown."""
     fields = {}
     try:
         with open("/proc/cpuinfo") as f:

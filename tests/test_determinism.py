@@ -1,7 +1,7 @@
 """Determinism: the same case gives bit-identical histories when run twice in one process and
 in two separate processes, for every thread count the step loop supports
-(:func:`thread_counts`). Different thread counts sum in different orders and agree
-only to round-off (tests/test_threads.py); docs/robustness.md says what holds."""
+(:func:`thread_counts`); different thread counts give the same bits too
+(tests/test_threads.py); docs/robustness.md says what holds."""
 
 import subprocess
 import sys

@@ -6,8 +6,8 @@ on its first end i; the second end j takes -f_e) into ``Work.ef`` (3, m + 1), in
 strains and tensions are computed in a straight loop that LLVM vectorises (sqrt and divide
 on all lanes). The node pass sums each node's element forces through ``Links.node_elems``, the
 node's elements in element order: no scatter, no force buffer per thread, each node written
-once by one thread. Adding in element order gives the forces of the scatter loop
-(:func:`spinweb_fe.fe.step.accumulate_elements`) bit for bit; blocks are fixed and their
+once by one thread. Adding in element order gives the forces of a scatter loop (each
+element's force added to both ends in element order) bit for bit; blocks are fixed and their
 partial sums (strain energy, damping power, the node pass's energy and momentum sums) are
 added in block order, so every thread count gives the same bits.
 

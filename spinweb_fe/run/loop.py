@@ -203,7 +203,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         there with status 'interrupted by <answer>'.
     threads : int or None
         Threads of the step loop (see :func:`choose_threads`); results are bit-identical
-        for a given thread count.
+        for every thread count (fixed blocks, fixed summation order: fe.forces).
     energy_limit : float
         Relative energy-balance error that stops the run (RunError).
 
