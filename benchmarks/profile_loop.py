@@ -97,11 +97,11 @@ def main(argv=None) -> int:
             "element pass, damped": lambda: element_pass(damped, k.links, pos, vel, work,
                                                          False, th),
             "node sums": lambda: node_sums(k.links, work, th),
-            "node update": lambda: step.node_pass(k.nodes, k.hub, st, work.force, 0.0, 0.0, dt,
-                                                  work.nout, sums, False, th),
+            "node update": lambda: step.node_pass(k.nodes, k.hub, st, work, 0.0, 0.0, dt, sums,
+                                                  False, th),
             "node update, contact check": lambda: step.node_pass(
-                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, st, work.force,
-                0.0, 0.0, dt, work.nout, sums, False, th),
+                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, st, work, 0.0, 0.0,
+                dt, sums, False, th),
         }
         best = {name: np.inf for name in parts}
         for _ in range(args.rounds):

@@ -71,6 +71,8 @@ class Work(NamedTuple):
         read and amend it).
     tension : (m,) float64 [N]
         Element tensions, written on record steps and by damped elements.
+    inside : (n,) bool
+        The node update's mark of the nodes heading inside the hub this step.
     ef : (3, m + 1) float64 [N]
         Element force vectors f_e (column m stays zero: the padding slot).
     buf : (chunks, 8, BLOCK) float64
@@ -86,6 +88,7 @@ class Work(NamedTuple):
 
     force: np.ndarray
     tension: np.ndarray
+    inside: np.ndarray
     ef: np.ndarray
     buf: np.ndarray
     eout: np.ndarray
@@ -119,7 +122,8 @@ def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
 def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK) -> Work:
     """A :class:`Work` for a model, with gather buffers for ``chunks`` threads and blocks of
     ``block`` elements (and nodes)."""
-    return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros((3, n_elems + 1)),
+    return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros(n_nodes, np.bool_),
+                np.zeros((3, n_elems + 1)),
                 np.zeros((chunks, 8, block)),
                 np.zeros((max(1, -(-n_elems // block)), 8)),
                 np.zeros((max(1, -(-n_nodes // block)), 5)))

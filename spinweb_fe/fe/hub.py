@@ -21,6 +21,8 @@ def moment_of(pos, force, idx):
 @njit(cache=True)
 def place_rigid(pos, vel, idx, ref, theta, omega):
     """Nodes ``idx`` move with the hub: x = R(theta) x_hub (``ref``), v = omega z x x."""
+    if idx.shape[0] == 0:
+        return
     c = np.cos(theta)
     s = np.sin(theta)
     for k in range(idx.shape[0]):

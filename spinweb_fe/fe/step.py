@@ -114,10 +114,10 @@ def drift(mv, dt, lo, hi):
     pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
     for q in range(hi - lo):
         i = np.uint64(lo + q)
-        a = 1.0 if inv_mass[i] > 0.0 else 0.0
-        pos[i, 0] += a * (dt * vel[i, 0])
-        pos[i, 1] += a * (dt * vel[i, 1])
-        pos[i, 2] += a * (dt * vel[i, 2])
+        h = dt if inv_mass[i] > 0.0 else 0.0
+        pos[i, 0] += h * vel[i, 0]
+        pos[i, 1] += h * vel[i, 1]
+        pos[i, 2] += h * vel[i, 2]
 
 
 @njit(inline="always", error_model="numpy")
@@ -127,11 +127,39 @@ def kick_drift(mv, force, dt, lo, hi):
     for q in range(hi - lo):
         i = np.uint64(lo + q)
         im = inv_mass[i]
-        a = 1.0 if im > 0.0 else 0.0
+        h = dt if im > 0.0 else 0.0  # a node without active mass stays where it is
         for d in range(3):
             v = vel[i, d] + dt * force[i, d] * im
             vel[i, d] = v
-            pos[i, d] += a * (dt * v)
+            pos[i, d] += h * v
+
+
+@njit(inline="always", error_model="numpy")
+def kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
+    """:func:`kick` and :func:`drift` in one straight loop, except that a contact node with
+    active mass heading inside the hub cylinder is kicked but not moved (``inside[i]`` set:
+    its contact comes first). Returns whether any node is inside."""
+    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
+    hit = 0
+    for q in range(hi - lo):
+        i = np.uint64(lo + q)
+        im = inv_mass[i]
+        vx = vel[i, 0] + dt * force[i, 0] * im
+        vy = vel[i, 1] + dt * force[i, 1] * im
+        vz = vel[i, 2] + dt * force[i, 2] * im
+        vel[i, 0] = vx
+        vel[i, 1] = vy
+        vel[i, 2] = vz
+        px = pos[i, 0] + dt * vx
+        py = pos[i, 1] + dt * vy
+        into = (px * px + py * py < r0 * r0) and contact[i] and im > 0.0
+        inside[i] = into
+        h = dt if im > 0.0 and not into else 0.0
+        pos[i, 0] += h * vx
+        pos[i, 1] += h * vy
+        pos[i, 2] += h * vz
+        hit |= 1 if into else 0
+    return hit > 0
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -149,11 +177,13 @@ def spin_sums(mv, lo, hi):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, record, out):
+def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi, record,
+                    out):
     """Node pass over nodes lo..hi-1: v += dt f/m, cable-hub contact, x += dt v.
     ``mv``: :class:`NodeMotion`; nodes with no active mass (tied, held, inside a bundle)
-    stay; ``j_eff`` [kg m^2] is the hub's inertia now. Contact is looked at only in a block
-    where some node heads inside the hub. On record steps ``out[:4]`` receives the kinetic
+    stay; ``j_eff`` [kg m^2] is the hub's inertia now; ``inside`` (n,) bool: scratch for the
+    nodes heading inside the hub. Contact is looked at only in a block where some node heads
+    inside the hub. On record steps ``out[:4]`` receives the kinetic
     energy and angular momentum sums before and after the update. Returns (omega, contact
     dissipation [J])."""
     pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
@@ -162,6 +192,16 @@ def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, r
     diss = 0.0
     if not (record or r0 > 0.0):
         kick_drift(mv, force, dt, lo, hi)
+        return omega, diss
+    if not record:  # one loop; the nodes heading inside get their contact, then move
+        if kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
+            for i in range(lo, hi):
+                if inside[i]:
+                    omega, d = contact_node(i, pos, vel, force, node_mass[i], r0,
+                                            hub.friction, j_eff, omega, dw_force, dt)
+                    diss += d
+                    for k in range(3):
+                        pos[i, k] += dt * vel[i, k]
         return omega, diss
     if record:
         out[0], out[2] = spin_sums(mv, lo, hi)
@@ -182,7 +222,8 @@ def integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt, lo, hi, r
 
 
 @njit(cache=True, parallel=True)
-def integrate_threads(nodes, hub, mv, force, omega, dw_force, j_eff, dt, nout, chunks, record):
+def integrate_threads(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, nout, chunks,
+                      record):
     """:func:`integrate_nodes` on several threads (frictionless contact only: friction turns
     the hub node by node): node block b (``nout.shape[0]`` blocks of equal size) into
     nout[b] = (ke0, ke1, lz0, lz1, contact dissipation), the blocks in one contiguous chunk
@@ -192,8 +233,17 @@ def integrate_threads(nodes, hub, mv, force, omega, dw_force, j_eff, dt, nout, c
     size = -(-n // nb)
     for c in prange(chunks):
         for b in range(nb * c // chunks, nb * (c + 1) // chunks):
-            _, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, omega, dw_force, j_eff, dt,
-                                            b * size, min(n, (b + 1) * size), record, nout[b])
+            _, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force,
+                                            j_eff, dt, b * size, min(n, (b + 1) * size),
+                                            record, nout[b])
+
+
+@njit(cache=True, parallel=True)
+def kick_drift_threads(mv, force, dt, chunks):
+    """:func:`kick_drift` of every node, one contiguous range of nodes per thread."""
+    n = force.shape[0]
+    for c in prange(chunks):
+        kick_drift(mv, force, dt, n * c // chunks, n * (c + 1) // chunks)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -224,24 +274,34 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
 
 
 @njit(cache=True)
-def node_pass(nodes, hub, state, force, w_old, w_new, dt, nout, sums, record, threads=None):
-    """Velocity and position update of every free node, in node blocks (``nout`` (blocks,
-    5): their partial sums), on several threads when contact is frictionless. ``sums[:5]``
-    receives the kinetic energy and angular momentum sums and the contact dissipation, added
-    in block order. Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
+def node_pass(nodes, hub, state, work, w_old, w_new, dt, sums, record, threads=None):
+    """Velocity and position update of every free node: one straight loop when there is
+    nothing to sum and no hub to touch, else in node blocks (``nout`` (blocks, 5): their
+    partial sums); on several threads when contact is frictionless. ``sums[:5]`` receives
+    the kinetic energy and angular momentum sums (record steps) and the contact dissipation,
+    added in block order. Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
     mv = NodeMotion(state.node_pos, state.node_vel, state.node_mass, state.node_inv_mass)
     j_eff = state.hub.inertia[0]
+    force, nout, inside = work.force, work.nout, work.inside
     n = force.shape[0]
+    if not (record or hub.radius > 0.0):  # nothing to sum, no contact: one straight loop
+        if threads is None:
+            kick_drift(mv, force, dt, 0, n)
+        else:
+            kick_drift_threads(mv, force, dt, threads)
+        sums[4] = 0.0
+        return w_new, 0.0
     nb = nout.shape[0]
     size = -(-n // nb)
     w = w_new
     if threads is not None and hub.friction == 0.0:  # None: pruned by numba
-        integrate_threads(nodes, hub, mv, force, w_new, w_new - w_old, j_eff, dt, nout,
+        integrate_threads(nodes, hub, mv, force, inside, w_new, w_new - w_old, j_eff, dt, nout,
                           threads, record)
     else:
         for b in range(nb):
-            w, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, w, w_new - w_old, j_eff, dt,
-                                            b * size, min(n, (b + 1) * size), record, nout[b])
+            w, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, inside, w, w_new - w_old,
+                                            j_eff, dt, b * size, min(n, (b + 1) * size),
+                                            record, nout[b])
     for k in range(5):
         sums[k] = 0.0
         for b in range(nb):
@@ -358,8 +418,8 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
                 plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]),
                             vec[nrec])
         theta = state.hub.angle[0]
-        w_new, dcontact = node_pass(nodes, hub, state, force, w_old, w_new, dt, work.nout, sums,
-                                    record, threads)
+        w_new, dcontact = node_pass(nodes, hub, state, work, w_old, w_new, dt, sums, record,
+                                    threads)
         if has_coil:
             scatter_bundles(model.bundles, state.coil, pos, vel)
         incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
