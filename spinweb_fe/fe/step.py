@@ -86,11 +86,11 @@ class NodeMotion(NamedTuple):
 
 
 @njit(inline="always", error_model="numpy")
-def kick(mv, force, contact, r0, dt, lo, hi):
+def kick(mv, force, contact, inside, r0, dt, lo, hi):
     """v_{n+1/2} = v_{n-1/2} + dt f / m for nodes lo..hi-1, as a straight loop that LLVM
     vectorises (a node without active mass, 1/m = 0: tied, held, inside a bundle, adds
-    nothing). Returns whether a contact node with active mass heads inside the hub cylinder
-    (x_n + dt v_{n+1/2} within r0 of the axis; an OR reduction)."""
+    nothing); ``inside[i]`` marks a contact node with active mass heading inside the hub
+    cylinder (x_n + dt v_{n+1/2} within r0 of the axis). Returns whether any node is."""
     pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
     hit = 0
     for q in range(hi - lo):
@@ -103,7 +103,9 @@ def kick(mv, force, contact, r0, dt, lo, hi):
         vel[i, 2] += dt * force[i, 2] * im
         px = pos[i, 0] + dt * vx
         py = pos[i, 1] + dt * vy
-        hit |= 1 if (px * px + py * py < r0 * r0) and contact[i] and im > 0.0 else 0
+        into = (px * px + py * py < r0 * r0) and contact[i] and im > 0.0
+        inside[i] = into
+        hit |= 1 if into else 0
     return hit > 0
 
 
@@ -162,6 +164,24 @@ def kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
     return hit > 0
 
 
+@njit(inline="always")
+def touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi, move):
+    """Cable-hub contact of the nodes of lo..hi-1 marked ``inside``, in node order (friction
+    turns the hub node by node); with ``move`` each then takes its drift. Returns (omega,
+    contact dissipation [J])."""
+    pos, vel, node_mass = mv.pos, mv.vel, mv.mass
+    diss = 0.0
+    for i in range(lo, hi):
+        if inside[i]:
+            omega, d = contact_node(i, pos, vel, force, node_mass[i], hub.radius, hub.friction,
+                                    j_eff, omega, dw_force, dt)
+            diss += d
+            if move:
+                for k in range(3):
+                    pos[i, k] += dt * vel[i, k]
+    return omega, diss
+
+
 @njit(cache=True, no_cpython_wrapper=True)
 def spin_sums(mv, lo, hi):
     """(sum m |v|^2, sum m (x v_y - y v_x)) over the nodes of lo..hi-1 with active mass."""
@@ -186,7 +206,6 @@ def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, l
     inside the hub. On record steps ``out[:4]`` receives the kinetic
     energy and angular momentum sums before and after the update. Returns (omega, contact
     dissipation [J])."""
-    pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
     contact = nodes.contact
     r0 = hub.radius
     diss = 0.0
@@ -195,28 +214,16 @@ def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, l
         return omega, diss
     if not record:  # one loop; the nodes heading inside get their contact, then move
         if kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
-            for i in range(lo, hi):
-                if inside[i]:
-                    omega, d = contact_node(i, pos, vel, force, node_mass[i], r0,
-                                            hub.friction, j_eff, omega, dw_force, dt)
-                    diss += d
-                    for k in range(3):
-                        pos[i, k] += dt * vel[i, k]
+            omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
+                                    True)
         return omega, diss
-    if record:
-        out[0], out[2] = spin_sums(mv, lo, hi)
-    if kick(mv, force, contact, r0, dt, lo, hi):  # v_{n+1/2} = v_{n-1/2} + dt f / m
-        for i in range(lo, hi):
-            px = pos[i, 0] + dt * vel[i, 0]  # predicted position: only nodes heading
-            py = pos[i, 1] + dt * vel[i, 1]  # inside the hub cylinder need the call
-            if contact[i] and inv_mass[i] > 0.0 and px * px + py * py < r0 * r0:
-                omega, d = contact_node(i, pos, vel, force, node_mass[i], r0, hub.friction,
-                                        j_eff, omega, dw_force, dt)
-                diss += d
-    if record:
-        out[1], out[3] = spin_sums(mv, lo, hi)
-        out[0] *= 0.5
-        out[1] *= 0.5
+    out[0], out[2] = spin_sums(mv, lo, hi)
+    if kick(mv, force, contact, inside, r0, dt, lo, hi):  # v_{n+1/2} = v_{n-1/2} + dt f / m
+        omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
+                                False)
+    out[1], out[3] = spin_sums(mv, lo, hi)
+    out[0] *= 0.5
+    out[1] *= 0.5
     drift(mv, dt, lo, hi)  # x_{n+1} = x_n + dt v_{n+1/2}
     return omega, diss
 
