@@ -1,6 +1,6 @@
 """spinweb's bare step loop against the hand-written C loop of ../shared/limit, in one run.
 
-    python benchmarks/limit_ratio.py [--rounds 3] [--steps 300] [--mesh fine|coarse]
+    python benchmarks/limit_ratio.py [--rounds 3] [--steps 300] [--mesh fine|coarse] [--replot]
 
 Builds ``../shared/limit/limit.c`` with gcc (``-O3 -march=native -fno-math-errno -fopenmp``,
 as its README says) into a temporary folder, then runs, interleaved A B A B for ``--rounds``
@@ -11,7 +11,9 @@ fastest of ``--repeat`` loops of one process; each C sample the best of its repe
 The medians over the rounds and their ratios go to ``benchmarks/results/limit_ratio.json``
 with the CPU model, family/model and ISA and the load before every sample, and the same
 summary into ``benchmarks/results/throughput.json`` (key ``limit_ratio``), with the bytes
-each loop moves per element-update (:func:`traffic`); compare numbers only within one file.
+each loop moves per element-update (:func:`traffic`), and a bar chart into
+``limit_ratio.png`` (``--replot`` redraws it from the JSON); compare numbers only within one
+file.
 Without gcc or the limit folder it says so and exits 2.
 """
 
@@ -72,13 +74,43 @@ def run_c(exe: Path, variant: str, mesh: str, threads: int, steps: int, reps: in
     return ne * nsteps / t_min, head
 
 
+def plot(out, path):
+    """Bars of the median element-updates/s of each loop on 1 and 2 threads."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    med = out["median_element_updates_per_s"]
+    names = ("spinweb", "anchor", "soa")
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for k, t in enumerate((1, 2)):
+        vals = [med[f"{n}_{t}t"] for n in names]
+        bars = ax.bar([x + 0.38 * k for x in range(3)], vals, 0.36, label=f"{t} thread(s)")
+        ax.bar_label(bars, labels=[f"{v:.2g}" for v in vals], fontsize=7)
+    ax.set_xticks([x + 0.19 for x in range(3)],
+                  ["spinweb", "C anchor (hand SIMD)", "C soa (plain scalar)"])
+    m = out["machine"]
+    ax.set(ylabel="element-updates / s",
+           title=f"80 400-element web, {m['processor']} {m['cpu_family_model']} {m['isa']}, "
+                 f"{out['date']}")
+    ax.title.set_fontsize(8)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--steps", type=int, default=300, help="steps of each sample")
     ap.add_argument("--repeat", type=int, default=3, help="spinweb loops per sample")
     ap.add_argument("--mesh", choices=sorted(MESH_WIDTH), default="fine")
+    ap.add_argument("--replot", action="store_true", help="redraw the plot from the JSON only")
     args = ap.parse_args(argv)
+    if args.replot:
+        plot(json.loads(OUT.read_text()), OUT.with_suffix(".png"))
+        return 0
     if shutil.which("gcc") is None or not LIMIT.is_file():
         print(f"limit_ratio: needs gcc and {LIMIT}", file=sys.stderr)
         return 2
@@ -128,6 +160,7 @@ def main(argv=None) -> int:
     through = json.loads(THROUGHPUT.read_text()) if THROUGHPUT.is_file() else {}
     through["limit_ratio"] = summary
     THROUGHPUT.write_text(json.dumps(through, indent=1))
+    plot(out, OUT.with_suffix(".png"))
     print(json.dumps({k: out[k] for k in ("median_element_updates_per_s",
                                           "ratio_spinweb_to_anchor", "speedup_2_threads")},
                      indent=1))
