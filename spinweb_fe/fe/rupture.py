@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from spinweb_fe.fe.forces import sum_blocks
 from spinweb_fe.fe.law import damped_tension, lengthening, stretch
 
 #: columns of the per-row strength table (``Recording.strength_table``): peak utilisation [-],
@@ -201,15 +202,9 @@ def strength_pass(elems, strength, ss, pos, vel, work, record, dt, threads=None)
                            record, eout[b], dt)
     else:
         strength_threads(elems, strength, ss.broken, pos, vel, work, record, dt)
-    se = 0.0
-    tmax = 0.0
-    pdamp = 0.0
     for b in range(eout.shape[0]):
-        se += eout[b, 0]
-        tmax = max(tmax, eout[b, 1])
-        pdamp += eout[b, 2]
         merge_peak(ss, eout[b, 3], eout[b, 4], int(eout[b, 5]), eout[b, 6], int(eout[b, 7]))
-    return se, tmax, pdamp
+    return sum_blocks(eout)
 
 
 @njit(cache=True)

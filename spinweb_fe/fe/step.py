@@ -86,30 +86,6 @@ class NodeMotion(NamedTuple):
 
 
 @njit(inline="always", error_model="numpy")
-def kick(mv, force, contact, inside, r0, dt, lo, hi):
-    """v_{n+1/2} = v_{n-1/2} + dt f / m for nodes lo..hi-1, as a straight loop that LLVM
-    vectorises (a node without active mass, 1/m = 0: tied, held, inside a bundle, adds
-    nothing); ``inside[i]`` marks a contact node with active mass heading inside the hub
-    cylinder (x_n + dt v_{n+1/2} within r0 of the axis). Returns whether any node is."""
-    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
-    hit = 0
-    for q in range(hi - lo):
-        i = np.uint64(lo + q)
-        im = inv_mass[i]
-        vx = vel[i, 0] + dt * force[i, 0] * im
-        vy = vel[i, 1] + dt * force[i, 1] * im
-        vel[i, 0] = vx
-        vel[i, 1] = vy
-        vel[i, 2] += dt * force[i, 2] * im
-        px = pos[i, 0] + dt * vx
-        py = pos[i, 1] + dt * vy
-        into = (px * px + py * py < r0 * r0) and contact[i] and im > 0.0
-        inside[i] = into
-        hit |= 1 if into else 0
-    return hit > 0
-
-
-@njit(inline="always", error_model="numpy")
 def drift(mv, dt, lo, hi):
     """x_{n+1} = x_n + dt v_{n+1/2} for the nodes of lo..hi-1 with active mass (a straight
     loop: the others add 0 dt v)."""
@@ -124,7 +100,7 @@ def drift(mv, dt, lo, hi):
 
 @njit(inline="always", error_model="numpy")
 def kick_drift(mv, force, dt, lo, hi):
-    """:func:`kick` then :func:`drift` in one straight loop (no contact, no records)."""
+    """v += dt f / m, then :func:`drift`, in one straight loop (no contact, no records)."""
     pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
     for q in range(hi - lo):
         i = np.uint64(lo + q)
@@ -137,10 +113,13 @@ def kick_drift(mv, force, dt, lo, hi):
 
 
 @njit(inline="always", error_model="numpy")
-def kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
-    """:func:`kick` and :func:`drift` in one straight loop, except that a contact node with
-    active mass heading inside the hub cylinder is kicked but not moved (``inside[i]`` set:
-    its contact comes first). Returns whether any node is inside."""
+def kick(mv, force, contact, inside, r0, dt, lo, hi, move):
+    """v_{n+1/2} = v_{n-1/2} + dt f / m for nodes lo..hi-1 in a straight loop that LLVM
+    vectorises (a node without active mass, 1/m = 0: tied, held, inside a bundle, adds
+    nothing); ``inside[i]`` marks a contact node with active mass heading inside the hub
+    cylinder (x_n + dt v_{n+1/2} within r0 of the axis). With ``move`` the same loop drifts
+    every other node with active mass (:func:`drift`): the marked ones wait for their
+    contact. Returns whether any node is marked."""
     pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
     hit = 0
     for q in range(hi - lo):
@@ -156,7 +135,7 @@ def kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
         py = pos[i, 1] + dt * vy
         into = (px * px + py * py < r0 * r0) and contact[i] and im > 0.0
         inside[i] = into
-        h = dt if im > 0.0 and not into else 0.0
+        h = dt if move and im > 0.0 and not into else 0.0
         pos[i, 0] += h * vx
         pos[i, 1] += h * vy
         pos[i, 2] += h * vz
@@ -213,12 +192,12 @@ def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, l
         kick_drift(mv, force, dt, lo, hi)
         return omega, diss
     if not record:  # one loop; the nodes heading inside get their contact, then move
-        if kick_drift_clear(mv, force, contact, inside, r0, dt, lo, hi):
+        if kick(mv, force, contact, inside, r0, dt, lo, hi, True):
             omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
                                     True)
         return omega, diss
     out[0], out[2] = spin_sums(mv, lo, hi)
-    if kick(mv, force, contact, inside, r0, dt, lo, hi):  # v_{n+1/2} = v_{n-1/2} + dt f / m
+    if kick(mv, force, contact, inside, r0, dt, lo, hi, False):  # v_{n+1/2}, no drift yet
         omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
                                 False)
     out[1], out[3] = spin_sums(mv, lo, hi)
