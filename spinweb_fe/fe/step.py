@@ -178,19 +178,16 @@ def spin_sums(mv, lo, hi):
 @njit(cache=True, no_cpython_wrapper=True)
 def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi, record,
                     out):
-    """Node pass over nodes lo..hi-1: v += dt f/m, cable-hub contact, x += dt v.
+    """Node pass over nodes lo..hi-1 on a record step or with a hub (:func:`node_pass` takes
+    the other steps in one straight loop): v += dt f/m, cable-hub contact, x += dt v.
     ``mv``: :class:`NodeMotion`; nodes with no active mass (tied, held, inside a bundle)
     stay; ``j_eff`` [kg m^2] is the hub's inertia now; ``inside`` (n,) bool: scratch for the
     nodes heading inside the hub. Contact is looked at only in a block where some node heads
-    inside the hub. On record steps ``out[:4]`` receives the kinetic
-    energy and angular momentum sums before and after the update. Returns (omega, contact
-    dissipation [J])."""
+    inside the hub. On record steps ``out[:4]`` receives the kinetic energy and angular
+    momentum sums before and after the update. Returns (omega, contact dissipation [J])."""
     contact = nodes.contact
     r0 = hub.radius
     diss = 0.0
-    if not (record or r0 > 0.0):
-        kick_drift(mv, force, dt, lo, hi)
-        return omega, diss
     if not record:  # one loop; the nodes heading inside get their contact, then move
         if kick(mv, force, contact, inside, r0, dt, lo, hi, True):
             omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
