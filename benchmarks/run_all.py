@@ -1,6 +1,6 @@
 """All benchmarks, one after the other (``make bench``); results in benchmarks/results/.
 
-    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp]
+    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp energy]
                                  [--wait-quiet 30]
 
 - throughput.json: the bare spinning web at W = 2.5 m (3280 elements) and W = 0.5 m
@@ -11,8 +11,9 @@
 - ramp_run.json: cases/paper_ramp_web.toml (10 s at the README's accuracy: cfl 0.3 with 1
   and with 2 elements per segment; frames and results.h5 written) on 2 threads and 1 thread,
   wall time per run;
-- feature_cost.json, profile_loop.json, scaling.json/png, work_precision.json/png: see
-  those scripts.
+- feature_cost.json, profile_loop.json, scaling.json/png, work_precision.json/png,
+  energy_attribution.json/png (where the step's energy error is made; no timing): see those
+  scripts.
 
 The machine is shared: before each part the script waits (at most ``--wait-quiet`` s) for a
 1-minute load below 0.5 and records the load it ran at.
@@ -103,7 +104,8 @@ def ramp(wait):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling", "wp"]
+    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling", "wp",
+             "energy"]
     ap.add_argument("--only", nargs="+", choices=parts, default=parts)
     ap.add_argument("--wait-quiet", type=float, default=30.0,
                     help="seconds to wait for a 1-minute load below 0.5 before each part")
@@ -120,7 +122,8 @@ def main(argv=None):
             wait_for_quiet(max_wait=wait)
             script = {"limit": "limit_ratio.py", "feature_cost": "feature_cost.py",
                       "profile": "profile_loop.py",
-                      "scaling": "scaling.py", "wp": "work_precision.py"}[part]
+                      "scaling": "scaling.py", "wp": "work_precision.py",
+                      "energy": "energy_attribution.py"}[part]
             print(bench(script), flush=True)
 
 
