@@ -299,7 +299,7 @@ def held_moment(coil, cs, pos, force):
     return tau
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True)
 def gather_bundles(coil, cs, force):
     """The force (n, 3) on each released level of a bundled arm, summed on its spine node
     (the other nodes' rows are cleared). ``coil`` None: a scene without bundles (numba
@@ -319,7 +319,7 @@ def gather_bundles(coil, cs, force):
                     force[i, d] = 0.0
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True)
 def scatter_bundles(coil, cs, pos, vel):
     """The other nodes of each bundle take its spine node's position and velocity (``coil``
     None: no bundles)."""

@@ -8,7 +8,7 @@ from numba import njit
 from spinweb_fe.fe.control import eval_control
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True)
 def moment_of(pos, force, idx):
     """z-moment sum (x f_y - y f_x) of the forces ``force`` (n, 3) on nodes ``idx``."""
     tau = 0.0

@@ -433,23 +433,25 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     return 0, nrec
 
 
-@njit(cache=True)
 def start_half_step(model, law, state, force, dt):
     """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0;
-    ``force`` (n, 3): the internal forces at x_0 (fe.forces.internal_forces)."""
+    ``force`` (n, 3): the internal forces at x_0 (fe.forces.internal_forces).
+
+    Python, not a kernel: it runs once, and a kernel taking the whole model and state costs
+    about a second of cold compile for their unboxing alone. The compiled helpers it calls
+    are the step loop's own; the arithmetic is the same, in the same order (bit for bit)."""
     hub, coil = model.hub, model.coil
     pos = state.node_pos
     vel = state.node_vel
-    if coil.level_nodes.shape[0] > 0:
+    if model.bundles is not None:
         gather_bundles(model.bundles, state.coil, force)
-    for i in range(pos.shape[0]):
-        for d in range(3):
-            vel[i, d] -= 0.5 * dt * force[i, d] * state.node_inv_mass[i]
+    vel -= 0.5 * dt * force * state.node_inv_mass[:, None]
     tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil, state.coil, pos, force)
-    prescribed, value = eval_control(law, 0.0, state.hub.rate[0])
+    rate = state.hub.rate
+    prescribed, value = eval_control(law, 0.0, rate[0])
     if prescribed:
-        _, state.hub.rate[0] = eval_control(law, -0.5 * dt, state.hub.rate[0])
+        _, rate[0] = eval_control(law, -0.5 * dt, rate[0])
     else:
-        state.hub.rate[0] -= 0.5 * dt * (value + tau) / state.hub.inertia[0]
-    if coil.level_nodes.shape[0] > 0:
+        rate[0] -= 0.5 * dt * (value + tau) / state.hub.inertia[0]
+    if model.bundles is not None:
         scatter_bundles(model.bundles, state.coil, pos, vel)
