@@ -143,3 +143,11 @@ def test_kernel_branch_of_each_law_is_its_analytical_form(name):
             assert prescribed == law.prescribes_rate
             expect = law.rate(params, t)[0] if prescribed else law.torque(params, t, w)
             assert value == expect, (name, t, w)
+
+
+def test_the_step_loops_release_the_gil():
+    """The result writer's frame thread runs while a chunk runs (io.results)."""
+    from spinweb_fe.fe import free_step
+
+    assert step.advance.targetoptions.get("nogil") is True
+    assert free_step.advance_free.targetoptions.get("nogil") is True

@@ -252,7 +252,7 @@ def after_step(model, state, t_next):
     open_bundles(model.bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
     """``nsteps`` steps of a free-hub scene; rows as :func:`spinweb_fe.fe.step.advance` (its
     workspace and threads for the force passes; the node pass runs on one thread), the

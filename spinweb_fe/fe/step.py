@@ -350,7 +350,7 @@ def coil_step(coil, bundles, elems, nodes, state, t_next):
     open_bundles(bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 

@@ -1,6 +1,11 @@
 """Run outputs: ``results.h5`` (histories and frames, appended and flushed at every event)
 and the ParaView collection ``web.pvd`` + ``frames/web_NNNNNN.vtu`` (valid after every frame).
 
+A frame's ``/frames`` row is written and flushed at its event; its VTU file and PVD entry are
+written by one background thread while the step loop (numba, without the GIL) runs the next
+chunk. At most one frame is in flight: the next frame, a checkpoint, the end and a failure
+wait for it first, and an error of that thread stops the run like any failed write.
+
 Before each write the free disk space is checked (:class:`spinweb_fe.io.space.DiskGuard`);
 a write that fails anyway is undone: every dataset is cut back to what the last flush
 holds, the partial frame file is removed, and the run stops with a :class:`RunError`.
@@ -11,6 +16,7 @@ from __future__ import annotations
 import logging
 import time
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import h5py
@@ -85,6 +91,8 @@ class ResultWriter(Recorder):
         self.n_rows = 0
         self.guard = guard
         self._ds = {}  # open datasets by path
+        self._pool = None  # the frame writer thread, started at the first frame
+        self._pending = None  # (future, time, file) of the frame whose VTU is being written
         self.vtu_bytes = 80 * model.n_nodes + 42 * model.n_elems + 4096  # uncompressed VTU
         if resume is not None:
             self._reopen(case, resume, write_frames)
@@ -187,17 +195,15 @@ class ResultWriter(Recorder):
         self.flushed = (self.n_rows, self.flushed[1])
 
     def frame(self, frame):
-        """One VTU frame, one /frames row, then one more entry in the PVD."""
+        """One /frames row (flushed), then, in the writer thread, the VTU file and one more
+        entry in the PVD (the frame before is waited for first)."""
         if self.frames is None:
             return
-        t, pos, vel, tension = frame.time, frame.pos, frame.vel, frame.tension
-        mesh = self.model.mesh
+        self._settle()
+        t = frame.time
         k = len(self.pvd_entries)
         rel = f"frames/web_{k:06d}.vtu"
-        rest = mesh.elem_rest_len
-        length = mesh.elem_length(pos)
-        strain = np.where(rest > 0, (length - rest) / np.where(rest > 0, rest, 1.0), 0.0)
-        rows = (("time", t), ("position", pos), ("tension", tension))
+        rows = (("time", t), ("position", frame.pos), ("tension", frame.tension))
         if frame.broken is not None:
             rows += (("broken", frame.broken),)
         self._need(self.vtu_bytes + PVD_LINE + sum(
@@ -210,26 +216,71 @@ class ResultWriter(Recorder):
                 ds.resize(k + 1, axis=0)
                 ds[k] = val
             self.h5.flush()
-            write_vtu(self.dir / rel, pos, mesh.elem_nodes,
-                      point_data={"velocity": vel, "displacement": pos - mesh.node_ref,
-                                  "node_mass": self.model.nodes.mass},
-                      cell_data={"tension": tension, "strain": strain,
-                                 "slack": (tension <= 0).astype(np.int8),
-                                 **strength_cells(self.model, strain, frame.broken)})
-            self.vtu_bytes = int(1.25 * (self.dir / rel).stat().st_size) + 4096
-            pvd = self.dir / "web.pvd"
-            try:
-                if k:
-                    append_pvd(pvd, (t, rel))
-                else:
-                    write_pvd(pvd, [(t, rel)])
-            except (ValueError, FileNotFoundError):  # changed by someone else: rewrite it
-                write_pvd(pvd, [*self.pvd_entries, (t, rel)])
         except (OSError, RuntimeError) as exc:
-            (self.dir / rel).unlink(missing_ok=True)
             self._failed(exc, t)
-        self.pvd_entries.append((t, rel))
-        self.flushed = (self.flushed[0], k + 1)
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="spinweb-frames")
+        self._pending = (self._pool.submit(self._write_frame, frame, rel), t, rel)
+
+    def _write_frame(self, frame, rel):
+        """The VTU file of ``frame`` and its PVD entry (in the writer thread; ``frame``'s
+        arrays are its own copies)."""
+        t, pos, vel, tension = frame.time, frame.pos, frame.vel, frame.tension
+        mesh = self.model.mesh
+        rest = mesh.elem_rest_len
+        length = mesh.elem_length(pos)
+        strain = np.where(rest > 0, (length - rest) / np.where(rest > 0, rest, 1.0), 0.0)
+        write_vtu(self.dir / rel, pos, mesh.elem_nodes,
+                  point_data={"velocity": vel, "displacement": pos - mesh.node_ref,
+                              "node_mass": self.model.nodes.mass},
+                  cell_data={"tension": tension, "strain": strain,
+                             "slack": (tension <= 0).astype(np.int8),
+                             **strength_cells(self.model, strain, frame.broken)})
+        self.vtu_bytes = int(1.25 * (self.dir / rel).stat().st_size) + 4096
+        pvd = self.dir / "web.pvd"
+        try:
+            if self.pvd_entries:
+                append_pvd(pvd, (t, rel))
+            else:
+                write_pvd(pvd, [(t, rel)])
+        except (ValueError, FileNotFoundError):  # changed by someone else: rewrite it
+            write_pvd(pvd, [*self.pvd_entries, (t, rel)])
+
+    def _wait(self):
+        """Wait for the frame in flight: count it if its VTU file and PVD entry were
+        written, else remove its file and return (exception, time)."""
+        if self._pending is None:
+            return None
+        future, t, rel = self._pending
+        self._pending = None
+        exc = future.exception()
+        if exc is None:
+            self.pvd_entries.append((t, rel))
+            self.flushed = (self.flushed[0], len(self.pvd_entries))
+            return None
+        (self.dir / rel).unlink(missing_ok=True)
+        return exc, t
+
+    def _settle(self):
+        """Wait for the frame in flight; its failure stops the run as a failed write would."""
+        failure = self._wait()
+        if failure is not None:
+            exc, t = failure
+            if isinstance(exc, (OSError, RuntimeError)):
+                self._failed(exc, t)
+            raise exc
+
+    def checkpoint(self, state, memory):
+        """Before the checkpoint (a later recorder) reads the rows and frames written."""
+        self._settle()
+
+    def end(self, status):
+        self._settle()
+
+    def drain(self):
+        """Wait for the frame in flight (the run stopped on an error: the driver calls this
+        before the final attributes). Raises RunError if its writing failed."""
+        self._settle()
 
     def _open(self, path):
         """The dataset at ``path``, kept open for the whole run: closing a dataset writes its
@@ -240,12 +291,14 @@ class ResultWriter(Recorder):
         return ds
 
     def _need(self, nbytes, what, t):
-        if self.guard is not None:
-            self.guard.need(nbytes, what, t)
+        if self.guard is not None:  # a frame in flight may not have taken its room yet
+            inflight = self.vtu_bytes + PVD_LINE if self._pending is not None else 0
+            self.guard.need(nbytes + inflight, what, t)
 
     def _failed(self, exc, t):
         """A write failed: free the reserve, cut every dataset back to the last flush,
         flush that, and stop the run (RunError naming the cause)."""
+        self._wait()  # a frame in flight: counted if written, else its file removed
         if self.guard is not None:
             self.guard.release()
         rows, frames = self.flushed
@@ -293,6 +346,15 @@ class ResultWriter(Recorder):
         self.h5.flush()
 
     def close(self):
+        failure = self._wait()  # only when drain() was not called
+        if failure is not None and self.h5:
+            try:
+                self._failed(*failure)
+            except RunError as exc:
+                log.error("%s", exc)
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
         if self.h5:
             self.h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
             self._ds = {}

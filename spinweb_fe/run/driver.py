@@ -208,6 +208,10 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
 def _finish(writer, **attrs):
     """Final attributes and close; an I/O error here must not hide the run's own error."""
     try:
+        writer.drain()  # the frame in flight when the loop stopped on an error
+    except Exception as exc:  # noqa: BLE001 - reported, the file keeps its last flush
+        log.error("%s", exc)
+    try:
         writer.set_attrs(**attrs)
     except Exception as exc:  # noqa: BLE001 - reported, the file keeps its last flush
         log.error("could not write the final attributes of results.h5: %s", exc)
