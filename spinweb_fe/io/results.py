@@ -1,5 +1,9 @@
-"""Run outputs: ``results.h5`` (histories and frames, appended and flushed at every event)
-and the ParaView collection ``web.pvd`` + ``frames/web_NNNNNN.vtu`` (valid after every frame).
+"""Run outputs: ``results.h5`` (histories and frames, appended and flushed) and the ParaView
+collection ``web.pvd`` + ``frames/web_NNNNNN.vtu`` (valid after every frame).
+
+History rows are kept in memory and written (one resize and write per column, one flush)
+every ROWS_WRITE_S of wall time or ROWS_WRITE_MAX rows, the first rows at once, and always
+before a checkpoint, at the end and when the run stops on an error.
 
 A frame's ``/frames`` row is written and flushed at its event; its VTU file and PVD entry are
 written by one background thread while the step loop (numba, without the GIL) runs the next
@@ -14,6 +18,7 @@ holds, the partial frame file is removed, and the run stops with a :class:`RunEr
 from __future__ import annotations
 
 import logging
+import math
 import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
@@ -26,7 +31,7 @@ from spinweb_fe.errors import RunError
 from spinweb_fe.io.checkpoint import CHECKPOINT_NAME
 from spinweb_fe.io.h5 import write_root_attrs
 from spinweb_fe.io.mesh import write_mesh_group
-from spinweb_fe.io.space import no_space
+from spinweb_fe.io.space import DiskFull, no_space
 from spinweb_fe.io.vtk import append_pvd, write_pvd, write_vtu
 from spinweb_fe.record.history import COLUMNS
 from spinweb_fe.record.recorders import Recorder
@@ -34,6 +39,10 @@ from spinweb_fe.record.strength import strength_cells
 
 CHUNK_VALUES = 2 ** 15  # float64 values per dataset chunk (256 KB): bounded file growth
 PVD_LINE = 100  # [bytes] about one PVD entry
+ROWS_WRITE_S = 0.5  # [s] wall time between two writes of history rows
+# ... and at most this many rows per write, the loop's rows per chunk (run.loop): a write
+# that fails in HDF5 must leave no more in its caches than the reserve file gives room for
+ROWS_WRITE_MAX = 256
 log = logging.getLogger(__name__)
 
 
@@ -59,7 +68,7 @@ class ResultWriter(Recorder):
     """Owns results.h5 and the ParaView collection of one run (a recorder of the loop).
 
     Histories are appended in chunks (resizable datasets) and flushed, so a run that stops
-    early leaves a readable file with everything recorded so far.
+    early leaves a readable file with everything written so far.
     """
 
     def __init__(self, out_dir, case, model, dt, write_frames=True, resume=None, guard=None):
@@ -88,7 +97,10 @@ class ResultWriter(Recorder):
         self.t0 = time.perf_counter()
         self.frames = None
         self.pvd_entries = []
-        self.n_rows = 0
+        self.n_rows = 0  # history rows written
+        self._rows = []  # chunks of history rows not written yet
+        self._rows_kept = 0
+        self._rows_written = -math.inf  # wall clock of the last write: the first is at once
         self.guard = guard
         self._ds = {}  # open datasets by path
         self._pool = None  # the frame writer thread, started at the first frame
@@ -174,25 +186,54 @@ class ResultWriter(Recorder):
         return ds
 
     def rows(self, rows: dict):
-        """Append rows: name -> (T,) or (T, n_arms) arrays."""
+        """Take rows (name -> (T,) or (T, n_arms) arrays); write what is kept when the last
+        write is ROWS_WRITE_S old (the first rows at once) or ROWS_WRITE_MAX rows are kept."""
         rows = {name: np.asarray(arr, dtype=np.float64) for name, arr in rows.items()}
+        n = len(next(iter(rows.values()), ()))
+        if self._rows and (rows.keys() != self._rows[0].keys()
+                           or self._rows_kept + n > ROWS_WRITE_MAX):
+            self._write_rows()
+        self._rows.append(rows)
+        self._rows_kept += n
+        if (time.perf_counter() - self._rows_written >= ROWS_WRITE_S
+                or self._rows_kept >= ROWS_WRITE_MAX):
+            self._write_rows()
+
+    def _take_rows(self) -> dict:
+        """The rows kept in memory, joined (and forgotten here)."""
+        kept, self._rows, self._rows_kept = self._rows, [], 0
+        if len(kept) <= 1:
+            return kept[0] if kept else {}
+        return {name: np.concatenate([r[name] for r in kept]) for name in kept[0]}
+
+    def _write_rows(self):
+        """Append the rows kept in memory to /history and flush."""
+        rows = self._take_rows()
+        if not rows:
+            return
         t = float(rows["time"][-1]) if len(rows.get("time", ())) else None
         self._need(sum(_growth(self._ds.get(f"history/{name}"), arr)
                        for name, arr in rows.items()),
                    "history rows", t)
         try:
-            for name, arr in rows.items():
-                if name not in self.hist:
-                    self._new(self.hist, name, (0,) + arr.shape[1:], *COLUMNS[name])
-                ds = self._open(f"history/{name}")
-                k = ds.shape[0]
-                ds.resize(k + len(arr), axis=0)
-                ds[k:] = arr
+            self._append_rows(rows)
             self.h5.flush()
         except (OSError, RuntimeError) as exc:
             self._failed(exc, t)
-        self.n_rows += len(rows["time"]) if "time" in rows else 0
         self.flushed = (self.n_rows, self.flushed[1])
+        self._rows_written = time.perf_counter()
+
+    def _append_rows(self, rows):
+        for name, arr in rows.items():
+            ds = self._ds.get(f"history/{name}")
+            if ds is None:
+                if name not in self.hist:
+                    self._new(self.hist, name, (0,) + arr.shape[1:], *COLUMNS[name])
+                ds = self._open(f"history/{name}")
+            k = ds.shape[0]
+            ds.resize(k + len(arr), axis=0)
+            ds[k:] = arr
+        self.n_rows += len(rows["time"]) if "time" in rows else 0
 
     def frame(self, frame):
         """One /frames row (flushed), then, in the writer thread, the VTU file and one more
@@ -273,14 +314,21 @@ class ResultWriter(Recorder):
     def checkpoint(self, state, memory):
         """Before the checkpoint (a later recorder) reads the rows and frames written."""
         self._settle()
+        self._write_rows()
 
     def end(self, status):
         self._settle()
+        self._write_rows()
 
     def drain(self):
-        """Wait for the frame in flight (the run stopped on an error: the driver calls this
-        before the final attributes). Raises RunError if its writing failed."""
+        """Wait for the frame in flight and write the rows kept in memory (the run stopped on
+        an error: the driver calls this before the final attributes). Rows that would not
+        fit on the disk are dropped; raises RunError if a write failed."""
         self._settle()
+        try:
+            self._write_rows()
+        except DiskFull as exc:
+            log.debug("history rows not written: %s", exc)
 
     def _open(self, path):
         """The dataset at ``path``, kept open for the whole run: closing a dataset writes its
@@ -301,6 +349,14 @@ class ResultWriter(Recorder):
         self._wait()  # a frame in flight: counted if written, else its file removed
         if self.guard is not None:
             self.guard.release()
+        kept = self._take_rows()
+        if kept:  # rows still in memory: written if they fit now (the reserve is free)
+            try:
+                self._append_rows(kept)
+                self.h5.flush()
+                self.flushed = (self.n_rows, self.flushed[1])
+            except (OSError, RuntimeError):
+                pass
         rows, frames = self.flushed
         self._flush_quietly()  # what could not be written: written now, or dropped
         for path, ds in list(self._ds.items()):
@@ -346,10 +402,9 @@ class ResultWriter(Recorder):
         self.h5.flush()
 
     def close(self):
-        failure = self._wait()  # only when drain() was not called
-        if failure is not None and self.h5:
+        if self.h5 and (self._pending is not None or self._rows):  # drain() was not called
             try:
-                self._failed(*failure)
+                self.drain()
             except RunError as exc:
                 log.error("%s", exc)
         if self._pool is not None:
