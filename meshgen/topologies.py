@@ -44,9 +44,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from meshgen.checks import MeshValueError
 from meshgen.mesh import Mesh
@@ -119,6 +116,11 @@ def _merge_close(pts, tol, priority=None):
     The representative of a cluster is its member with the lowest ``priority`` value
     (then the lowest index).
     """
+    # imported here: scipy costs 0.2-0.3 s of start-up, and the square web never comes here
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     pairs = cKDTree(pts).query_pairs(tol, output_type="ndarray")
     n = len(pts)
     g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))

@@ -26,7 +26,6 @@ from spinweb_fe.fe.rigid import make_body
 from spinweb_fe.fe.rupture import make_strength
 from spinweb_fe.fe.state import State, initial_state
 from spinweb_fe.fe.tidal import R_EARTH, orbit
-from spinweb_fe.linear.steady import structure_from_model
 
 MAX_STEPS = 1e10  # more steps than this is a units slip (days of run time), not a case
 NO_SPIN = "a cable net without spin has no out-of-plane stiffness (the tension vanishes)"
@@ -154,6 +153,9 @@ def deployed(case):
     The fold is replaced by ``flat`` (webs) or ``straight`` (tethers) and the stowage by
     none, so that the mesh and model are the case's flat reference with its hub ties.
     """
+    # imported here: linear/ needs scipy.sparse, 0.15-0.25 s of start-up that a run does not use
+    from spinweb_fe.linear.steady import structure_from_model
+
     pattern = "flat" if case.scene == "web" else "straight"
     stowage = dataclasses.replace(case.stowage, **{k: None for k in
                                                    case.stowage.__dataclass_fields__})
