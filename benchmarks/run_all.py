@@ -1,6 +1,7 @@
 """All benchmarks, one after the other (``make bench``); results in benchmarks/results/.
 
-    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp energy]
+    python benchmarks/run_all.py [--only throughput limit anchor ramp feature_cost profile scaling wp
+                                  energy]
                                  [--wait-quiet 30]
 
 - throughput.json: the bare spinning web at W = 2.5 m (3280 elements) and W = 0.5 m
@@ -8,6 +9,7 @@
   compile time (empty NUMBA_CACHE_DIR, in a fresh process);
 - limit_ratio.json (and the ``limit_ratio`` key of throughput.json): spinweb's bare loop
   against the C loops of ../shared/limit, interleaved, 1 and 2 threads (limit_ratio.py);
+  anchor_sweep.json/png: a node-anchored sweep prototype against both (anchor_sweep.py);
 - ramp_run.json: cases/paper_ramp_web.toml (10 s at the README's accuracy: cfl 0.3 with 1
   and with 2 elements per segment; frames and results.h5 written) on 2 threads and 1 thread,
   wall time per run;
@@ -104,8 +106,8 @@ def ramp(wait):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling", "wp",
-             "energy"]
+    parts = ["throughput", "limit", "anchor", "ramp", "feature_cost", "profile", "scaling",
+             "wp", "energy"]
     ap.add_argument("--only", nargs="+", choices=parts, default=parts)
     ap.add_argument("--wait-quiet", type=float, default=30.0,
                     help="seconds to wait for a 1-minute load below 0.5 before each part")
@@ -120,7 +122,8 @@ def main(argv=None):
             ramp(wait)
         else:
             wait_for_quiet(max_wait=wait)
-            script = {"limit": "limit_ratio.py", "feature_cost": "feature_cost.py",
+            script = {"limit": "limit_ratio.py", "anchor": "anchor_sweep.py",
+                      "feature_cost": "feature_cost.py",
                       "profile": "profile_loop.py",
                       "scaling": "scaling.py", "wp": "work_precision.py",
                       "energy": "energy_attribution.py"}[part]
