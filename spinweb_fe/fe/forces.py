@@ -285,7 +285,7 @@ def sum_blocks(eout):
     return se, tmax, pdamp
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True)
 def element_forces(elems, links, pos, vel, work, record, threads):
     """Every element's force vector at x_n into ``work.ef``. Returns (strain energy [J] and
     max tension [N] on record steps, damping power [W]). ``threads`` None: one thread (numba
@@ -299,7 +299,7 @@ def element_forces(elems, links, pos, vel, work, record, threads):
     return sum_blocks(work.eout)
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True)
 def node_forces(links, work, threads):
     """``work.force`` (n, 3) = the element forces of ``work.ef`` summed per node."""
     n = work.force.shape[0]
@@ -311,15 +311,15 @@ def node_forces(links, work, threads):
         node_threads(links, work.ef, work.force, work.buf.shape[0])
 
 
-@njit(cache=True)
 def internal_forces(elems, links, pos, vel, work, record):
     """One thread: every element's force vector and tension (``work.ef``, ``work.tension``)
     and their sums per node (``work.force``) at the given positions. Returns (strain energy
     [J], max tension [N], damping power [W]); the first two on ``record`` only, which also
-    writes the tensions. (The same compiled passes as the step loop's on one thread: the
-    thread argument is an explicit None, and ``record`` comes from Python, never a
-    literal, which would compile them again.)"""
-    se, tmax, pdamp = element_forces(elems, links, pos, vel, work, record, None)
+    writes the tensions. Python calling the step loop's own compiled passes with the same
+    argument types (an explicit None for the threads, ``record`` a bool from Python, never
+    a literal), so nothing is compiled for it; a kernel of its own cost about 0.5 s of cold
+    compile, LLVM optimising and emitting the passes' code once more."""
+    se, tmax, pdamp = element_forces(elems, links, pos, vel, work, bool(record), None)
     node_forces(links, work, None)
     return se, tmax, pdamp
 
