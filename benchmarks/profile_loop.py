@@ -90,6 +90,8 @@ def main(argv=None) -> int:
         st = state0.copy()
         pos, vel = st.node_pos, st.node_vel
         sums = np.zeros(5)
+        mv = step.NodeMotion(st.node_pos, st.node_vel, st.node_mass, st.node_inv_mass)
+        j_eff = float(st.hub.inertia[0])
         parts = {
             "element pass": lambda: element_pass(k.elements, k.links, pos, vel, work, False, th),
             "element pass, record step": lambda: element_pass(k.elements, k.links, pos, vel,
@@ -97,11 +99,11 @@ def main(argv=None) -> int:
             "element pass, damped": lambda: element_pass(damped, k.links, pos, vel, work,
                                                          False, th),
             "node sums": lambda: node_sums(k.links, work, th),
-            "node update": lambda: step.node_pass(k.nodes, k.hub, st, work, 0.0, 0.0, dt, sums,
-                                                  False, th),
+            "node update": lambda: step.node_pass(k.nodes, k.hub, mv, j_eff, work, 0.0, 0.0, dt,
+                                                  sums, False, th),
             "node update, contact check": lambda: step.node_pass(
-                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, st, work, 0.0, 0.0,
-                dt, sums, False, th),
+                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, mv, j_eff, work, 0.0,
+                0.0, dt, sums, False, th),
         }
         best = {name: np.inf for name in parts}
         for _ in range(args.rounds):

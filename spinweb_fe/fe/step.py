@@ -257,14 +257,12 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
 
 
 @njit(cache=True)
-def node_pass(nodes, hub, state, work, w_old, w_new, dt, sums, record, threads=None):
+def node_pass(nodes, hub, mv, j_eff, work, w_old, w_new, dt, sums, record, threads=None):
     """Velocity and position update of every free node: one straight loop when there is
     nothing to sum and no hub to touch, else in node blocks (``nout`` (blocks, 5): their
     partial sums); on several threads when contact is frictionless. ``sums[:5]`` receives
     the kinetic energy and angular momentum sums (record steps) and the contact dissipation,
     added in block order. Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
-    mv = NodeMotion(state.node_pos, state.node_vel, state.node_mass, state.node_inv_mass)
-    j_eff = state.hub.inertia[0]
     force, nout, inside = work.force, work.nout, work.inside
     n = force.shape[0]
     if not (record or hub.radius > 0.0):  # nothing to sum, no contact: one straight loop
@@ -339,17 +337,6 @@ def record_arms(coil, cs, table, t):
         table[k, 4] = allowed if np.isfinite(allowed) else np.nan
 
 
-@njit(cache=True, no_cpython_wrapper=True)
-def coil_step(coil, bundles, elems, nodes, state, t_next):
-    """After a step: release the fronts that the free parts pull off the hub (broken
-    elements pull nothing), then open the bundles that are due."""
-    cs = state.coil
-    state.hub.inertia[0] = release_fronts(coil, cs, elems, nodes, state.node_pos,
-                                          state.node_mass, state.node_inv_mass,
-                                          state.hub.inertia[0], t_next, state.strength.broken)
-    open_bundles(bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
-
-
 @njit(cache=True, nogil=True)
 def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
@@ -376,35 +363,52 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     vprobe = np.zeros((rec.probes.shape[0], 3))
     totals = state.totals
     has_coil = coil.level_nodes.shape[0] > 0
+    # the state's arrays taken out once: every use of a tuple's field inside the loop, and
+    # every tuple handed to a compiled function, costs NRT reference counts (an atomic add
+    # per array), which made 40 % of a 200-element step
+    links, bundles, cs, ss = model.links, model.bundles, state.coil, state.strength
+    mass, inv_mass, broken = state.node_mass, state.node_inv_mass, ss.broken
+    mv = NodeMotion(pos, vel, mass, inv_mass)
+    hub_angle, hub_rate, hub_inertia = state.hub.angle, state.hub.rate, state.hub.inertia
+    step_no, time_now = state.step, state.time
+    torque_work = totals.torque_work
+    damping_dissipation = totals.damping_dissipation
+    contact_dissipation = totals.contact_dissipation
+    arm_ptr, front = coil.arm_ptr, cs.front
     nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
-        step = state.step[0]
+        step = step_no[0]
+        holding = False  # some arm still has levels on the hub (the coil kernels have work)
+        if has_coil:
+            for k in range(arm_ptr.shape[0] - 1):
+                holding |= arm_ptr[k] + front[k] < arm_ptr[k + 1]
         record = step % rec.every == 0
         t = step * dt
-        se, tmax, pdamp = element_pass(elems, model.links, strength, state.strength, pos, vel,
-                                       work, record, dt, threads)
+        se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
+                                       threads)
         tau = moment_of(pos, force, hub.tied_idx)
+        if holding:
+            tau += held_moment(coil, cs, pos, force)
         if has_coil:
-            tau += held_moment(coil, state.coil, pos, force)
-            gather_bundles(model.bundles, state.coil, force)
-        w_old = state.hub.rate[0]
-        j_eff = state.hub.inertia[0]
+            gather_bundles(bundles, cs, force)
+        w_old = hub_rate[0]
+        j_eff = hub_inertia[0]
         torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
         if record:
             probe_positions(rec, nrec, pos, vel, vprobe)
-            record_arms(coil, state.coil, rec.arm_table[nrec], t)
+            record_arms(coil, cs, rec.arm_table[nrec], t)
             if has_strength:
-                record_strength(state.strength, rec.strength_table[nrec])
+                record_strength(ss, rec.strength_table[nrec])
             if vec is not None:
                 vec[nrec] = 0.0
-                node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
+                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
                 plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]),
                             vec[nrec])
-        theta = state.hub.angle[0]
-        w_new, dcontact = node_pass(nodes, hub, state, work, w_old, w_new, dt, sums, record,
-                                    threads)
+        theta = hub_angle[0]
+        w_new, dcontact = node_pass(nodes, hub, mv, j_eff, work, w_old, w_new, dt, sums,
+                                    record, threads)
         if has_coil:
-            scatter_bundles(model.bundles, state.coil, pos, vel)
+            scatter_bundles(bundles, cs, pos, vel)
         incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
         incr[1] = pdamp * dt
         incr[2] = dcontact
@@ -412,24 +416,27 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
             write_row(rec.table[nrec], t, theta, w_old, w_new, torque, j_eff, sums, se, tmax,
                       totals, incr)
             if vec is not None:
-                node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
-                fixed_hub_row(hub, coil, state.coil, nodes, pos, theta, 0.5 * (w_old + w_new),
+                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
+                fixed_hub_row(hub, coil, cs, nodes, pos, theta, 0.5 * (w_old + w_new),
                               j_eff, vec[nrec])
             if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
                 return 1, nrec
             probe_velocities(rec, nrec, vel, vprobe)
             nrec += 1
-        state.hub.angle[0] = theta + dt * w_new
-        state.hub.rate[0] = w_new
-        totals.torque_work[0] += incr[0]
-        totals.damping_dissipation[0] += incr[1]
-        totals.contact_dissipation[0] += incr[2]
-        state.step[0] = step + 1
-        state.time[0] = (step + 1) * dt
-        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, state.hub.angle[0], w_new)
-        if has_coil:
-            place_held(coil, state.coil, pos, vel, state.hub.angle[0], w_new)
-            coil_step(coil, model.bundles, elems, nodes, state, (step + 1) * dt)
+        hub_angle[0] = theta + dt * w_new
+        hub_rate[0] = w_new
+        torque_work[0] += incr[0]
+        damping_dissipation[0] += incr[1]
+        contact_dissipation[0] += incr[2]
+        step_no[0] = step + 1
+        time_now[0] = (step + 1) * dt
+        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, hub_angle[0], w_new)
+        if holding:  # the held nodes move with the hub; then the fronts the arms pull off
+            place_held(coil, cs, pos, vel, hub_angle[0], w_new)
+            hub_inertia[0] = release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass,
+                                            hub_inertia[0], (step + 1) * dt, broken)
+        if has_coil:  # and the bundles that are due open
+            open_bundles(bundles, cs, nodes, mass, inv_mass, (step + 1) * dt)
     return 0, nrec
 
 
