@@ -143,10 +143,9 @@ def gather_ends(first, second, x, buf, row, lo, hi):
 
 
 @njit(inline="always", error_model="numpy")
-def plain_block(elems, ef, buf, lo, hi):
+def plain_block(inv_rest, ea, ef, buf, lo, hi):
     """f_e of the elements lo..hi-1 from their gathered end differences: the straight loop
     (no damping, no records) that LLVM vectorises."""
-    inv_rest, ea = elems.inv_rest, elems.ea
     for k in range(hi - lo):
         e = np.uint64(lo + k)
         dx, dy, dz = buf[0, k], buf[1, k], buf[2, k]
@@ -158,12 +157,11 @@ def plain_block(elems, ef, buf, lo, hi):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def full_block(elems, ef, tension, buf, lo, hi, record, eout, b):
+def full_block(inv_rest, ea, cdamp, damped, ef, tension, buf, lo, hi, record, eout, b):
     """f_e of the elements lo..hi-1 with the damper and the records: a straight loop that
     keeps each element's strain energy (buffer row 6), tension (``tension``) and damping
     power (row 3), then their sums in element order: eout[b, 0] strain energy (record
     steps), eout[b, 1] max tension (record steps), eout[b, 2] damping power."""
-    inv_rest, ea, cdamp, damped = elems.inv_rest, elems.ea, elems.cdamp, elems.damped
     n = hi - lo
     for k in range(n):
         e = np.uint64(lo + k)
@@ -196,23 +194,25 @@ def full_block(elems, ef, tension, buf, lo, hi, record, eout, b):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def element_block(elems, links, pos, vel, work, buf, b, record):
-    """Element block b: its force vectors into ``work.ef``, its sums into ``work.eout[b]``;
-    ``buf`` (8, block) is the chunk's gather buffer."""
-    ef, eout = work.ef, work.eout
-    m = elems.inv_rest.shape[0]
+def element_block(inv_rest, ea, cdamp, damped, first, second, pos, vel, ef, tension, eout, buf,
+                  b, record):
+    """Element block b: its force vectors into ``ef``, its sums into ``eout[b]``; ``buf``
+    (8, block) is the chunk's gather buffer. (Arrays, not the Elements, Links and Work
+    tuples: numba counts a reference for every array of every tuple a call hands over, and
+    this runs once per block and step.)"""
+    m = inv_rest.shape[0]
     lo = b * buf.shape[1]
     hi = min(lo + buf.shape[1], m)
-    gather_ends(links.first, links.second, pos, buf, 0, lo, hi)
-    if not (record or elems.damped):
-        plain_block(elems, ef, buf, lo, hi)
+    gather_ends(first, second, pos, buf, 0, lo, hi)
+    if not (record or damped):
+        plain_block(inv_rest, ea, ef, buf, lo, hi)
         eout[b, 0] = 0.0
         eout[b, 1] = 0.0
         eout[b, 2] = 0.0
         return
-    if elems.damped:
-        gather_ends(links.first, links.second, vel, buf, 3, lo, hi)
-    full_block(elems, ef, work.tension, buf, lo, hi, record, eout, b)
+    if damped:
+        gather_ends(first, second, vel, buf, 3, lo, hi)
+    full_block(inv_rest, ea, cdamp, damped, ef, tension, buf, lo, hi, record, eout, b)
 
 
 @njit(cache=True, parallel=True)
@@ -220,10 +220,13 @@ def element_threads(elems, links, pos, vel, work, record):
     """:func:`element_block` of every block, the blocks in one contiguous chunk per thread."""
     nc = work.buf.shape[0]
     nb = work.eout.shape[0]
+    inv_rest, ea, cdamp, damped = elems.inv_rest, elems.ea, elems.cdamp, elems.damped
+    first, second, ef, tension, eout = links.first, links.second, work.ef, work.tension, work.eout
     for c in prange(nc):
         buf = work.buf[c]
         for b in range(nb * c // nc, nb * (c + 1) // nc):
-            element_block(elems, links, pos, vel, work, buf, b, record)
+            element_block(inv_rest, ea, cdamp, damped, first, second, pos, vel, ef, tension, eout,
+                          buf, b, record)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -292,8 +295,12 @@ def element_forces(elems, links, pos, vel, work, record, threads):
     compiles no thread kernel); otherwise each chunk of the workspace runs on a thread."""
     if threads is None:
         buf = work.buf[0]
-        for b in range(work.eout.shape[0]):
-            element_block(elems, links, pos, vel, work, buf, b, record)
+        inv_rest, ea, cdamp, damped = elems.inv_rest, elems.ea, elems.cdamp, elems.damped
+        first, second = links.first, links.second
+        ef, tension, eout = work.ef, work.tension, work.eout
+        for b in range(eout.shape[0]):
+            element_block(inv_rest, ea, cdamp, damped, first, second, pos, vel, ef, tension,
+                          eout, buf, b, record)
     else:
         element_threads(elems, links, pos, vel, work, record)
     return sum_blocks(work.eout)
