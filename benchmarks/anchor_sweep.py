@@ -259,6 +259,16 @@ def plot(out, path):
     fig.savefig(path, dpi=110)
 
 
+def sample(runs, samples):
+    """One round: each of ``runs`` (name -> callable returning element-updates/s) once, in
+    order, into ``samples`` (name -> [(element-updates/s, 1-minute load)])."""
+    for name, fn in runs.items():
+        load = load_average()
+        eu = fn()
+        samples.setdefault(name, []).append((eu, load))
+        print(f"{name:34s} {eu:.3e} element-updates/s (load {load:.2f})", flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5)
@@ -297,11 +307,7 @@ def main(argv=None) -> int:
                 sorted_elems, sorted_links, state, inv_mass, dt, args.steps, args.repeat)
             runs["C anchor"] = lambda: run_c(exe, "anchor", "fine", 1, args.steps,
                                              args.repeat)[0]
-            for name, fn in runs.items():
-                load = load_average()
-                eu = fn()
-                samples.setdefault(name, []).append((eu, load))
-                print(f"{name:34s} {eu:.3e} element-updates/s (load {load:.2f})", flush=True)
+            sample(runs, samples)
         # two threads: the slot-major sweep on two node ranges, production, C anchor
         numba.set_num_threads(2)
         measure("spinning-web", MESH_WIDTH, 0.0, 2)  # compile / cache load, not timed
@@ -324,11 +330,7 @@ def main(argv=None) -> int:
                 repeat=args.repeat)["element_updates_per_s"]
             runs["C anchor, 2 threads"] = lambda: run_c(exe, "anchor", "fine", 2, args.steps,
                                                         args.repeat)[0]
-            for name, fn in runs.items():
-                load = load_average()
-                eu = fn()
-                samples.setdefault(name, []).append((eu, load))
-                print(f"{name:34s} {eu:.3e} element-updates/s (load {load:.2f})", flush=True)
+            sample(runs, samples)
     med = {k: statistics.median(e for e, _ in v) for k, v in samples.items()}
     out = {"machine": machine(), "mesh_width": MESH_WIDTH, "elements": model.n_elems,
            "nodes": model.n_nodes, "steps": args.steps, "rounds": args.rounds,
