@@ -33,10 +33,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 from pathlib import Path
 
 import numpy as np
+from energy_drift import straight_tethers
 from throughput import machine
 
 from spinweb_fe import case as case_mod
@@ -51,8 +51,7 @@ CFLS = (0.2, 0.3, 0.45)
 
 def scenes():
     arms = (ROOT / "cases" / "paper_free_arms.toml").read_text()
-    straight = re.sub(r"\[stowage\][^\[]*", "", arms).replace('pattern = "coiled"',
-                                                              'pattern = "straight"')
+    straight = straight_tethers(arms)
     return {
         "free web, held coil": ((ROOT / "cases" / "paper_free_web.toml").read_text(), ()),
         "web under the spin ramp": ((ROOT / "cases" / "paper_ramp_web.toml").read_text(), ()),

@@ -92,11 +92,16 @@ def case_run(text, cfl, end, sets=(), no_contact=False):
     return balance_error(r.history)
 
 
+def straight_tethers(arms):
+    """The case text ``arms`` (the coiled tethers) with straight tethers and no stowage table."""
+    return re.sub(r"\[stowage\][^\[]*", "", arms).replace('pattern = "coiled"',
+                                                          'pattern = "straight"')
+
+
 def solver_table(end):
     web = (ROOT / "cases" / "paper_free_web.toml").read_text()
     arms = (ROOT / "cases" / "paper_free_arms.toml").read_text()
-    straight = re.sub(r"\[stowage\][^\[]*", "", arms).replace('pattern = "coiled"',
-                                                              'pattern = "straight"')
+    straight = straight_tethers(arms)
     variants = {
         "free web, held coil": (web, (), False),
         "free web, held coil, no contact": (web, (), True),
