@@ -147,13 +147,12 @@ def integrate_free(nodes, hub, mv, force, env, t, hull, rs, R, V, Pi, Fb, Tb, dt
 
 
 @njit(cache=True)
-def body_kick(model, law, state, pos, force, t, dt, R):
+def body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt, R):
     """The body's loads and control at step n: (F, T + M b3, M [N m], omega before, its
     component omega_3 about b3, V_{n+1/2}, Pi_{n+1/2}, tidal force, tidal torque); V and
-    Pi before contact."""
-    hub, coil, body, env = model.hub, model.coil, model.body, model.env
-    rs = state.rigid
-    F, T = body_loads(hub, coil, state.coil, rs, pos, force)
+    Pi before contact. (The model's and state's parts, not the whole tuples: numba counts a
+    reference for every array a call hands over.)"""
+    F, T = body_loads(hub, coil, cs, rs, pos, force)
     Fg = np.zeros(3)
     Tg = np.zeros(3)
     if env.n > 0.0:
@@ -236,22 +235,6 @@ def twist(q, prev):
     return prev + d - 2.0 * np.pi * np.floor(d / (2.0 * np.pi) + 0.5)
 
 
-@njit(cache=True)
-def after_step(model, state, t_next):
-    """Body nodes placed; releases of held levels (the body detaches them) and bundles."""
-    hub, coil, nodes = model.hub, model.coil, model.nodes
-    rs, cs = state.rigid, state.coil
-    place_body(hub, coil, cs, rs, state.node_pos, state.node_vel)
-    if coil.level_nodes.shape[0] == 0:
-        return
-    before = cs.front.sum()
-    release_fronts(coil, cs, model.elements, nodes, state.node_pos, state.node_mass,
-                   state.node_inv_mass, 0.0, t_next, state.strength.broken)
-    if cs.front.sum() != before:
-        detach(model.body, nodes, hub, coil, cs, rs)
-    open_bundles(model.bundles, cs, nodes, state.node_mass, state.node_inv_mass, t_next)
-
-
 @njit(cache=True, nogil=True)
 def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
     """``nsteps`` steps of a free-hub scene; rows as :func:`spinweb_fe.fe.step.advance` (its
@@ -267,41 +250,52 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
     incr = np.zeros(4)
     vprobe = np.zeros((rec.probes.shape[0], 3))
     has_coil = coil.level_nodes.shape[0] > 0
-    mv = NodeMotion(pos, vel, state.node_mass, state.node_inv_mass)
+    # the model's and state's arrays taken out once (see fe.step.advance: every tuple handed
+    # to a compiled function costs a reference count per array)
+    links, bundles, env, body = model.links, model.bundles, model.env, model.body
+    cs, ss = state.coil, state.strength
+    mass, inv_mass, broken = state.node_mass, state.node_inv_mass, ss.broken
+    mv = NodeMotion(pos, vel, mass, inv_mass)
+    hub_angle, hub_rate, hub_inertia = state.hub.angle, state.hub.rate, state.hub.inertia
+    step_no, time_now = state.step, state.time
+    torque_work, gravity_work = totals.torque_work, totals.gravity_work
+    damping_dissipation = totals.damping_dissipation
+    contact_dissipation = totals.contact_dissipation
+    arm_ptr, front = coil.arm_ptr, cs.front
     nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
-        step = state.step[0]
+        step = step_no[0]
         record = step % rec.every == 0
         t = step * dt
-        se, tmax, pdamp = element_pass(elems, model.links, strength, state.strength, pos, vel,
-                                       work, record, dt, threads)
+        se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
+                                       threads)
         if has_coil:
-            gather_bundles(model.bundles, state.coil, force)
+            gather_bundles(bundles, cs, force)
         R = rotation(rs.quaternion)
-        Fb, Tb, torque, w_old, w3_old, V, Pi, Fg, Tg = body_kick(model, law, state, pos,
-                                                                 force, t, dt, R)
+        Fb, Tb, torque, w_old, w3_old, V, Pi, Fg, Tg = body_kick(hub, coil, cs, env, rs, law,
+                                                                 pos, force, t, dt, R)
         hull = hull_of(rs, R, w_old, dt)
         if record:
             probe_positions(rec, nrec, pos, vel, vprobe)
-            record_arms(coil, state.coil, rec.arm_table[nrec], t)
+            record_arms(coil, cs, rec.arm_table[nrec], t)
             if has_strength:
-                record_strength(state.strength, rec.strength_table[nrec])
+                record_strength(ss, rec.strength_table[nrec])
             vec[nrec] = 0.0
-            node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
+            node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
             plane_stats(pos, nodes.inv_mass, hull[0], hull[1], vec[nrec])
-        dcontact, wg = integrate_free(nodes, hub, mv, force, model.env, t, hull, rs, R, V,
-                                      Pi, Fb, Tb, dt, record, sums)
+        dcontact, wg = integrate_free(nodes, hub, mv, force, env, t, hull, rs, R, V, Pi, Fb, Tb,
+                                      dt, record, sums)
         if has_coil:
-            scatter_bundles(model.bundles, state.coil, pos, vel)
+            scatter_bundles(bundles, cs, pos, vel)
         w_new = inv_inertia(rs, R, Pi)
         w3_new = dot(R[:, 2], w_new)
         incr[0] = torque * dt * 0.5 * (w3_old + w3_new)  # work of M about b3
         incr[1] = pdamp * dt
         incr[2] = dcontact
         incr[3] = wg + 0.5 * dt * (dot(Fg, rs.velocity + V) + dot(Tg, w_old + w_new))
-        theta = state.hub.angle[0]
+        theta = hub_angle[0]
         if record:
-            node_momenta(pos, vel, state.node_mass, state.node_inv_mass, vec[nrec], 0.5)
+            node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
             body_row(vec[nrec], rs, R, hull, rs.velocity, V, rs.momentum, Pi, w_old, w_new)
             ke = 0.5 * (sums[0] + sums[1] + body_energy(rs, R, rs.velocity, rs.momentum)
                         + body_energy(rs, R, V, Pi))
@@ -315,18 +309,31 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
         rs.momentum[:] = Pi
         rs.position[:] = rs.position + dt * V
         free_rotation(rs, dt)
-        totals.torque_work[0] += incr[0]
-        totals.damping_dissipation[0] += incr[1]
-        totals.contact_dissipation[0] += incr[2]
-        totals.gravity_work[0] += incr[3]
-        state.step[0] = step + 1
-        state.time[0] = (step + 1) * dt
-        state.hub.angle[0] = twist(rs.quaternion, theta)
-        after_step(model, state, (step + 1) * dt)
+        torque_work[0] += incr[0]
+        damping_dissipation[0] += incr[1]
+        contact_dissipation[0] += incr[2]
+        gravity_work[0] += incr[3]
+        step_no[0] = step + 1
+        time_now[0] = (step + 1) * dt
+        hub_angle[0] = twist(rs.quaternion, theta)
+        # the body's nodes placed; releases of held levels (the body detaches them), bundles
+        place_body(hub, coil, cs, rs, pos, vel)
+        t_next = (step + 1) * dt
+        holding = False  # some arm still has levels on the hub
+        if has_coil:
+            for k in range(arm_ptr.shape[0] - 1):
+                holding |= arm_ptr[k] + front[k] < arm_ptr[k + 1]
+        if holding:
+            before = front.sum()
+            release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, 0.0, t_next, broken)
+            if front.sum() != before:
+                detach(body, nodes, hub, coil, cs, rs)
+        if has_coil:
+            open_bundles(bundles, cs, nodes, mass, inv_mass, t_next)
         R1 = rotation(rs.quaternion)
         b3 = R1[:, 2].copy()
-        state.hub.rate[0] = dot(b3, inv_inertia(rs, R1, rs.momentum))
-        state.hub.inertia[0] = dot(b3, mul(spatial_inertia(rs, R1), b3))
+        hub_rate[0] = dot(b3, inv_inertia(rs, R1, rs.momentum))
+        hub_inertia[0] = dot(b3, mul(spatial_inertia(rs, R1), b3))
     return 0, nrec
 
 

@@ -274,19 +274,25 @@ def place_body(hub, coil, cs, rs, pos, vel):
     R = rotation(rs.quaternion)
     w = inv_inertia(rs, R, rs.momentum)
     X, V, c = rs.position, rs.velocity, rs.com
-    for k in range(hub.tied_idx.shape[0]):
-        _place(hub.tied_idx[k], hub.tied_ref[k], R, X, V, c, w, pos, vel)
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        for p in range(coil.level_ptr[coil.arm_ptr[k] + cs.front[k]],
-                       coil.level_ptr[coil.arm_ptr[k + 1]]):
-            _place(coil.level_nodes[p], coil.level_ref[p], R, X, V, c, w, pos, vel)
+    # arrays taken out of their tuples before the loops, rows passed by index: a field or a
+    # row view taken per node costs numba reference counts per node (most of a step of the
+    # free-hub tethers)
+    tied_idx, tied_ref = hub.tied_idx, hub.tied_ref
+    arm_ptr, level_ptr, front = coil.arm_ptr, coil.level_ptr, cs.front
+    level_nodes, level_ref = coil.level_nodes, coil.level_ref
+    for k in range(tied_idx.shape[0]):
+        _place(tied_idx[k], tied_ref, k, R, X, V, c, w, pos, vel)
+    for k in range(arm_ptr.shape[0] - 1):
+        for p in range(level_ptr[arm_ptr[k] + front[k]], level_ptr[arm_ptr[k + 1]]):
+            _place(level_nodes[p], level_ref, p, R, X, V, c, w, pos, vel)
 
 
-@njit(cache=True)
-def _place(i, ref, R, X, V, c, w, pos, vel):
+@njit(inline="always")
+def _place(i, refs, row, R, X, V, c, w, pos, vel):
+    """Node i at its body-frame position refs[row]."""
+    r0, r1, r2 = refs[row, 0] - c[0], refs[row, 1] - c[1], refs[row, 2] - c[2]
     for a in range(3):
-        pos[i, a] = X[a] + R[a, 0] * (ref[0] - c[0]) + R[a, 1] * (ref[1] - c[1]) \
-            + R[a, 2] * (ref[2] - c[2])
+        pos[i, a] = X[a] + R[a, 0] * r0 + R[a, 1] * r1 + R[a, 2] * r2
     dx = pos[i, 0] - X[0]
     dy = pos[i, 1] - X[1]
     dz = pos[i, 2] - X[2]
@@ -302,16 +308,18 @@ def body_loads(hub, coil, cs, rs, pos, force):
     F = np.zeros(3)
     T = np.zeros(3)
     X = rs.position
-    for k in range(hub.tied_idx.shape[0]):
-        _load(hub.tied_idx[k], X, pos, force, F, T)
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        for p in range(coil.level_ptr[coil.arm_ptr[k] + cs.front[k]],
-                       coil.level_ptr[coil.arm_ptr[k + 1]]):
-            _load(coil.level_nodes[p], X, pos, force, F, T)
+    tied_idx = hub.tied_idx  # taken out before the loops (see place_body)
+    arm_ptr, level_ptr, front, level_nodes = coil.arm_ptr, coil.level_ptr, cs.front, \
+        coil.level_nodes
+    for k in range(tied_idx.shape[0]):
+        _load(tied_idx[k], X, pos, force, F, T)
+    for k in range(arm_ptr.shape[0] - 1):
+        for p in range(level_ptr[arm_ptr[k] + front[k]], level_ptr[arm_ptr[k + 1]]):
+            _load(level_nodes[p], X, pos, force, F, T)
     return F, T
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _load(i, X, pos, force, F, T):
     fx, fy, fz = force[i, 0], force[i, 1], force[i, 2]
     dx, dy, dz = pos[i, 0] - X[0], pos[i, 1] - X[1], pos[i, 2] - X[2]
