@@ -268,6 +268,17 @@ def held_inertia(coil, cs, nodes):
     return j
 
 
+@njit(cache=True, no_cpython_wrapper=True)
+def any_held(arm_ptr, front):
+    """Whether some arm still has levels on the hub (the held coil's kernels have work);
+    ``arm_ptr`` the coil's, ``front`` the CoilState's (arrays, not the tuples: the step
+    loops call this every step)."""
+    for k in range(arm_ptr.shape[0] - 1):
+        if arm_ptr[k] + front[k] < arm_ptr[k + 1]:
+            return True
+    return False
+
+
 @njit(cache=True)
 def place_held(coil, cs, pos, vel, theta, omega):
     """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""

@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.coil import gather_bundles, open_bundles, release_fronts, scatter_bundles
+from spinweb_fe.fe.coil import (any_held, gather_bundles, open_bundles, release_fronts,
+                                scatter_bundles)
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
                                  hub_centre, inv_inertia, mul, place_body, rotation,
@@ -319,11 +320,7 @@ def advance_free(model, law, state, work, rec, vec, dt, nsteps, threads=None):
         # the body's nodes placed; releases of held levels (the body detaches them), bundles
         place_body(hub, coil, cs, rs, pos, vel)
         t_next = (step + 1) * dt
-        holding = False  # some arm still has levels on the hub
-        if has_coil:
-            for k in range(arm_ptr.shape[0] - 1):
-                holding |= arm_ptr[k] + front[k] < arm_ptr[k + 1]
-        if holding:
+        if any_held(arm_ptr, front):
             before = front.sum()
             release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, 0.0, t_next, broken)
             if front.sum() != before:

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spinweb_fe.fe.coil import (front_row, gather_bundles, held_moment, open_bundles,
+from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, held_moment, open_bundles,
                                 payout_allowed, place_held, release_fronts, scatter_bundles)
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
@@ -378,10 +378,7 @@ def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
         step = step_no[0]
-        holding = False  # some arm still has levels on the hub (the coil kernels have work)
-        if has_coil:
-            for k in range(arm_ptr.shape[0] - 1):
-                holding |= arm_ptr[k] + front[k] < arm_ptr[k + 1]
+        holding = any_held(arm_ptr, front)
         record = step % rec.every == 0
         t = step * dt
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
