@@ -8,6 +8,7 @@ import pytest
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import build_mesh
+from spinweb_fe.fe.layout import ARM, named
 from spinweb_fe.record.arms import ArmTracker, deployed_length
 
 R0, H, M = 6.3, 50.0, 50
@@ -141,7 +142,7 @@ def test_held_coil_leaves_tangentially_within_one_level_of_its_front():
         tr.prev_ad[:] = 20.0 / R0
         row = np.array([[[front, front + 1.0, 1.0, 0.0, np.nan]]])
         L, phi, _, sd = tr.update(tip_rows([_tangent_tip(20.0, H - 20.0)]),
-                                  np.zeros((1, 1, 3)), np.zeros(1), row)
+                                  np.zeros((1, 1, 3)), np.zeros(1), named(row, ARM))
         assert sd[0, 0] == pytest.approx(20.0, rel=1e-12)
         assert phi[0, 0] == pytest.approx(-(math.pi / 2 + 20.0 / R0), abs=1e-12)
         assert L[0, 0] == pytest.approx(H - 20.0, rel=1e-12)
@@ -159,7 +160,7 @@ def test_an_arm_hanging_from_its_front_pivots_about_it_and_wraps_over_its_coil()
     s_f, l = 18.0, 25.0
     row = np.array([[[s_f, 19.0, 1.0, 1.0, np.nan]]])
     L, phi, _, sd = tr.update(tip_rows([_pivot_tip(s_f, -1.2, l)]), np.zeros((1, 1, 3)),
-                              np.zeros(1), row)
+                              np.zeros(1), named(row, ARM))
     assert sd[0, 0] == s_f and L[0, 0] == pytest.approx(l, rel=1e-12)
     assert phi[0, 0] == pytest.approx(-s_f / R0 - 1.2, abs=1e-12)
     betas = np.linspace(-1.2, 1.5, 28)  # swing to the other side ...
@@ -171,7 +172,8 @@ def test_an_arm_hanging_from_its_front_pivots_about_it_and_wraps_over_its_coil()
     T = len(rows)
     rows_t = np.repeat(row, T, axis=0)
     rows_t[betas.size:, 0, 3] = 0.0  # wound over the coil: the law does not bind there
-    L, phi, _, _ = tr.update(tip_rows(rows), np.zeros((T, 1, 3)), np.zeros(T), rows_t)
+    L, phi, _, _ = tr.update(tip_rows(rows), np.zeros((T, 1, 3)), np.zeros(T),
+                             named(rows_t, ARM))
     np.testing.assert_allclose(phi[:28, 0], -s_f / R0 + betas, atol=1e-12)
     wound = np.linspace(0.0, 0.6, 13)[1:]
     np.testing.assert_allclose(phi[28:, 0], -s_f / R0 + math.pi / 2 + wound, atol=1e-9)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from spinweb_fe.fe import step
-from spinweb_fe.fe.control import LAWS, KernelLaw, make_control
+from spinweb_fe.fe.contact import contact_node
+from spinweb_fe.fe.control import LAWS, KernelLaw, eval_control, make_control
 from spinweb_fe.fe.forces import eval_elements
 from spinweb_fe.fe.model import Elements
 
@@ -96,7 +97,7 @@ def test_contact_impulse_is_radial_and_keeps_node_outside():
     vel = np.array([[-3.0, 2.0, 0.0]])
     m = np.array([2.0])
     lz0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0])
-    w, diss = step.contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.0, 10.0, 0.0, 0.0,
+    w, diss = contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.0, 10.0, 0.0, 0.0,
                                 0.1)
     p1 = pos[0] + 0.1 * vel[0]
     assert math.hypot(p1[0], p1[1]) == pytest.approx(1.0, rel=1e-12)
@@ -111,7 +112,7 @@ def test_contact_friction_moment_goes_to_the_hub():
     m = np.array([2.0])
     j, w0 = 10.0, 0.5
     L0 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w0
-    w, diss = step.contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.3, j, w0, 0.0, 0.1)
+    w, diss = contact_node(0, pos, vel, np.zeros((1, 3)), m[0], 1.0, 0.3, j, w0, 0.0, 0.1)
     L1 = m[0] * (pos[0, 0] * vel[0, 1] - pos[0, 1] * vel[0, 0]) + j * w
     assert L1 == pytest.approx(L0, rel=1e-14)
     assert w > w0  # the sliding node drags the hub forward
@@ -139,15 +140,12 @@ def test_kernel_branch_of_each_law_is_its_analytical_form(name):
     params = np.array([1.7 + k for k in range(len(law.keys))] + [0.0])
     for t in (0.0, 0.3, 1.2, 2.69, 2.7, 2.71, 9.0):
         for w in (-3.0, 0.0, 0.4, 6.0):
-            prescribed, value = step.eval_control(KernelLaw(law.code, params), t, w)
+            prescribed, value = eval_control(KernelLaw(law.code, params), t, w)
             assert prescribed == law.prescribes_rate
             expect = law.rate(params, t)[0] if prescribed else law.torque(params, t, w)
             assert value == expect, (name, t, w)
 
 
-def test_the_step_loops_release_the_gil():
+def test_the_step_loop_releases_the_gil():
     """The result writer's frame thread runs while a chunk runs (io.results)."""
-    from spinweb_fe.fe import free_step
-
     assert step.advance.targetoptions.get("nogil") is True
-    assert free_step.advance_free.targetoptions.get("nogil") is True

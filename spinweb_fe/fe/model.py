@@ -17,7 +17,8 @@ import numpy as np
 from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.fe.coil import Coil, no_coil
 from spinweb_fe.fe.forces import Links, make_links
-from spinweb_fe.fe.rigid import Body, fixed_axis
+from spinweb_fe.fe.axis import Axis
+from spinweb_fe.fe.rigid import Body
 from spinweb_fe.fe.rupture import Strength, no_strength
 from spinweb_fe.fe.tidal import Environment, no_environment
 
@@ -95,7 +96,8 @@ class Hub(NamedTuple):
 
 
 class Kernel(NamedTuple):
-    """What the step kernels see of a Model (``Model.kernel``)."""
+    """What the step kernels see of a Model (``Model.kernel``; its hub kind apart,
+    ``Model.hub_kind``)."""
 
     elements: Elements
     links: Links
@@ -104,7 +106,6 @@ class Kernel(NamedTuple):
     coil: Coil
     bundles: object  # the coil when it has bundles, else None (numba compiles none of them)
     strength: Strength
-    body: Body
     env: Environment
 
 
@@ -133,8 +134,8 @@ class Model:
         sqrt(1 + zeta^2) - zeta.
     strength : Strength
         Failure strain per element and rupture (fe.rupture; empty: no strength check).
-    body : Body
-        The hub as a free rigid body (fe.rigid; mass 0: the hub turns about a fixed axis).
+    body : Body or None
+        The hub as a free rigid body (fe.rigid; None: the hub turns about a fixed axis).
     env : Environment
         The gravity gradient (fe.tidal; mean motion 0: none).
     """
@@ -149,7 +150,7 @@ class Model:
     wave_speed: float
     dt_critical: float
     strength: Strength = field(default_factory=no_strength)
-    body: Body = field(default_factory=fixed_axis)
+    body: Body | None = None
     env: Environment = field(default_factory=no_environment)
 
     @property
@@ -158,12 +159,19 @@ class Model:
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
         bundles = self.coil if self.coil.bundle_code > 0 else None
         return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, bundles,
-                      strength, self.body, self.env)
+                      strength, self.env)
+
+    @property
+    def hub_kind(self) -> tuple:
+        """(axis, body): the hub as the step loop takes it, exactly one of them None:
+        fe.axis.Axis on a fixed axis, or the free hub's fe.rigid.Body. The loop's phases are
+        chosen by these types (fe.step)."""
+        return (Axis(self.hub.j_eff), None) if self.body is None else (None, self.body)
 
     @property
     def free_hub(self) -> bool:
-        """The hub is a free rigid body (fe.free_step), not on a fixed axis (fe.step)."""
-        return self.body.mass > 0.0
+        """The hub is a free rigid body (fe.body), not on a fixed axis (fe.axis)."""
+        return self.body is not None
 
     @property
     def n_nodes(self) -> int:

@@ -8,7 +8,7 @@ frame -> inertial) and the angular momentum about the centre of mass Pi (inertia
 half step; its mass, centre of mass in the hub frame and inertia tensor change only when held
 nodes are released (:func:`detach`). A node of the body sits at x = X + R (r - c).
 
-One step (fe.free_step) is the central-difference step of the cables with the body in the
+One step (fe.step with the phases of fe.body) is the central-difference step of the cables with the body in the
 same leapfrog: a kick V += dt F / M, Pi += dt T with the loads at x_n, then the drift X += dt
 V and the free rotation of the body with Pi fixed over dt. The free rotation is the
 symplectic splitting of Dullweber, Leimkuhler and McLachlan (1997): the kinetic energy
@@ -34,7 +34,7 @@ class Body(NamedTuple):
     Attributes
     ----------
     mass : float [kg]
-        Hub mass (0: the hub turns about a fixed axis, fe.hub, and nothing here is used).
+        Hub mass.
     inertia : (3, 3) float64 [kg m^2]
         The hub's own inertia tensor about its centre, hub frame (z: the spin axis).
     """
@@ -44,7 +44,7 @@ class Body(NamedTuple):
 
 
 class RigidState(NamedTuple):
-    """The free body's state (every array empty when the hub turns about a fixed axis).
+    """The free body's state (``State.rigid``; None when the hub turns about a fixed axis).
 
     Attributes
     ----------
@@ -79,21 +79,10 @@ class RigidState(NamedTuple):
     moments: np.ndarray
 
 
-def fixed_axis() -> Body:
-    """The body of a hub on a fixed axis (nothing of this module runs)."""
-    return Body(0.0, np.zeros((3, 3)))
-
-
 def make_body(mass: float, principal) -> Body:
     """A free hub of ``mass`` [kg] and principal moments (I_x, I_y, I_z) [kg m^2] about
     the hub-frame axes (z the spin axis)."""
     return Body(float(mass), np.diag(np.asarray(principal, np.float64)))
-
-
-def no_rigid() -> RigidState:
-    """The (empty) rigid state of a fixed-axis hub."""
-    e1, e2 = np.zeros(0), np.zeros((0, 0))
-    return RigidState(e1, e1, e1, e1, e1, e1, e2, e2, e1)
 
 
 @njit(cache=True)

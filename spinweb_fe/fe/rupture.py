@@ -36,12 +36,6 @@ from numba import njit, prange
 from spinweb_fe.fe.forces import sum_blocks
 from spinweb_fe.fe.law import damped_tension, lengthening, stretch
 
-#: columns of the per-row strength table (``Recording.strength_table``): peak utilisation [-],
-#: its strain [-], its element, broken elements so far, rupture dissipation so far [J]
-STRENGTH_COLUMNS = ("utilisation", "max_strain", "max_strain_element", "broken_elements",
-                    "rupture_dissipation")
-
-
 class Strength(NamedTuple):
     """The strength data of the elements (fixed during a run).
 
@@ -220,15 +214,15 @@ def merge_peak(ss, u, strain, elem, released, nbreak):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def record_strength(ss, row):
-    """One row of the strength table (STRENGTH_COLUMNS) at a record step, after its element
-    pass (utilisation 0 and element -1 once every element is broken); the peak starts again
-    for the next row."""
-    row[0] = max(ss.peak[0], 0.0)
-    row[1] = ss.peak[1]
-    row[2] = ss.peak[2]
-    row[3] = ss.count[0]
-    row[4] = ss.dissipation[0]
+def record_strength(ss, row, st):
+    """One strength row (slots ``st`` of fe.layout.STRENGTH) at a record step, after its
+    element pass (utilisation 0 and element -1 once every element is broken); the peak
+    starts again for the next row."""
+    row[st.utilisation] = max(ss.peak[0], 0.0)
+    row[st.max_strain] = ss.peak[1]
+    row[st.max_strain_element] = ss.peak[2]
+    row[st.broken_elements] = ss.count[0]
+    row[st.rupture_dissipation] = ss.dissipation[0]
     ss.peak[0] = -1.0
     ss.peak[1] = 0.0
     ss.peak[2] = -1.0

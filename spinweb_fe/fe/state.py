@@ -7,9 +7,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from spinweb_fe.fe.axis import place_rigid
 from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
-from spinweb_fe.fe.hub import place_rigid
-from spinweb_fe.fe.rigid import RigidState, no_rigid, place_body, rigid_start
+from spinweb_fe.fe.layout import STEP_TERMS
+from spinweb_fe.fe.rigid import RigidState, place_body, rigid_start
 from spinweb_fe.fe.rupture import StrengthState, no_strength, strength_start
 
 
@@ -34,14 +35,15 @@ class HubState(NamedTuple):
     inertia: np.ndarray
 
 
-class Totals(NamedTuple):
-    """Energy accumulated up to t_n [J] (each a (1,) float64); ``gravity_work``: the work of
-    the gravity gradient (fe.tidal; free hub only)."""
+#: checkpoints before the energy table (fe.layout) held each term as ``totals/<name>``
+_OLD_TOTALS = {"torque_work": "torque_work", "damping_dissipation": "damping_dissipation",
+               "contact_dissipation": "contact_dissipation",
+               "gravity_gradient_work": "gravity_work"}
 
-    torque_work: np.ndarray
-    damping_dissipation: np.ndarray
-    contact_dissipation: np.ndarray
-    gravity_work: np.ndarray
+
+def no_totals() -> np.ndarray:
+    """The energy terms at the start: (len(fe.layout.STEP_TERMS),) zeros [J]."""
+    return np.zeros(len(STEP_TERMS))
 
 
 class State(NamedTuple):
@@ -58,15 +60,16 @@ class State(NamedTuple):
         moves with the hub (tied, held) or with its bundle, a bundle's mass on its spine node.
     hub : HubState
     coil : spinweb_fe.fe.coil.CoilState
-    totals : Totals
+    totals : (len(fe.layout.STEP_TERMS),) float64 [J]
+        Each energy term of the step (fe.layout.STEP_TERMS) accumulated up to t_n.
     step : (1,) int64
         n.
     time : (1,) float64 [s]
         t_n = n dt.
     strength : spinweb_fe.fe.rupture.StrengthState
         Broken elements, the strain peak since the last row, the rupture dissipation.
-    rigid : spinweb_fe.fe.rigid.RigidState
-        The free hub's body (empty arrays for a hub on a fixed axis).
+    rigid : spinweb_fe.fe.rigid.RigidState or None
+        The free hub's body (None for a hub on a fixed axis).
     """
 
     node_pos: np.ndarray
@@ -75,11 +78,11 @@ class State(NamedTuple):
     node_inv_mass: np.ndarray
     hub: HubState
     coil: CoilState
-    totals: Totals
+    totals: np.ndarray
     step: np.ndarray
     time: np.ndarray
     strength: StrengthState
-    rigid: RigidState
+    rigid: RigidState | None
 
     def copy(self) -> "State":
         """A deep copy (every array copied)."""
@@ -90,6 +93,8 @@ def to_arrays(state: State) -> dict:
     """Flat {name: array} view of a State (names like 'hub/rate'), for checkpoints."""
     out = {}
     for name, value in zip(State._fields, state):
+        if value is None:
+            continue
         if isinstance(value, tuple):
             out.update({f"{name}/{k}": v for k, v in zip(value._fields, value)})
         else:
@@ -100,13 +105,22 @@ def to_arrays(state: State) -> dict:
 def from_arrays(arrays: dict) -> State:
     """Inverse of :func:`to_arrays` (KeyError names a missing field). Arrays without the
     strength fields (written before they existed, by scenes without a strength check) get
-    those of no check."""
-    nested = {"hub": HubState, "coil": CoilState, "totals": Totals, "strength": StrengthState,
+    those of no check; energy terms written one by one (before fe.layout) are gathered;
+    a rigid body of empty arrays (a fixed axis, before it was None) is None."""
+    nested = {"hub": HubState, "coil": CoilState, "strength": StrengthState,
               "rigid": RigidState}
     kw = {}
     for name in State._fields:
         if name == "strength" and not any(k.startswith("strength/") for k in arrays):
             kw[name] = strength_start(no_strength())
+        elif name == "rigid":
+            rigid = RigidState(*(arrays.get(f"rigid/{k}", np.zeros(0))
+                                 for k in RigidState._fields))
+            kw[name] = rigid if rigid.position.size else None
+        elif name == "totals" and "totals" not in arrays:
+            kw[name] = np.array([float(np.asarray(arrays.get(f"totals/{_OLD_TOTALS[t.name]}",
+                                                             [0.0])).ravel()[0])
+                                 for t in STEP_TERMS])
         elif name in nested:
             kw[name] = nested[name](*(arrays[f"{name}/{k}"] for k in nested[name]._fields))
         else:
@@ -141,12 +155,12 @@ def initial_state(model, omega: float, spin: str = "all", held: bool = True,
                      bool(cs.bundled[k]))
     place_held(coil, cs, pos, vel, 0.0, omega)
     inertia = hub.j_eff + held_inertia(coil, cs, model.nodes)
-    rigid = no_rigid()
+    rigid = None
     if model.free_hub:
         rigid = rigid_start(model, cs, omega, tilt_rate)
         place_body(hub, coil, cs, rigid, pos, vel)
         inertia = float(rigid.inertia[2, 2])
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),
                                                np.array([inertia])), cs,
-                 Totals(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+                 no_totals(),
                  np.zeros(1, np.int64), np.zeros(1), strength_start(model.strength), rigid)

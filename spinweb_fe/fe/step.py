@@ -1,25 +1,28 @@
-"""The explicit central-difference step: ``advance`` and every numba kernel it calls.
+"""The explicit central-difference step: ``advance``, the one loop of every scene, and its
+phases.
 
-Central differences with half-step velocities (Kratos / LS-DYNA style):
+Central differences with half-step velocities (Kratos / LS-DYNA style), for a hub on a fixed
+axis (:mod:`spinweb_fe.fe.axis`) or a free rigid hub (:mod:`spinweb_fe.fe.body`):
 
-    f_n        = internal forces at x_n (damping with v_{n-1/2}): element force vectors,
-                 then their sum per node (fe.forces)
-    v_{n+1/2}  = v_{n-1/2} + dt f_n / m                       (free nodes)
-    omega_{n+1/2} = omega_{n-1/2} + dt (M_n + tau_n) / J_eff  (hub, or prescribed)
-    contact    : radial impulse so that x_{n+1} stays outside the hub (+ Coulomb friction)
-    x_{n+1}    = x_n + dt v_{n+1/2};  theta_{n+1} = theta_n + dt omega_{n+1/2}
-    tied nodes : x = R(theta_{n+1}) x_hub
+    forces     f_n = internal forces at x_n (damping with v_{n-1/2}): element force
+               vectors, then their sum per node (fe.forces; fe.rupture with a strength check)
+    hub loads  the forces on the nodes that move with the hub (tied, held) and the control
+               law; the hub's kick: omega_{n+1/2} (fixed axis) or V, Pi_{n+1/2} (free)
+    nodes      v_{n+1/2} = v_{n-1/2} + dt f_n / m, the cable-hub contact (fe.contact) of
+               the nodes heading inside the rim, x_{n+1} = x_n + dt v_{n+1/2}: one pass
+    hub drift  theta_{n+1} = theta_n + dt omega_{n+1/2}, or the free body's drift
+    place      tied and held nodes move with the hub
+    release    the peel fronts the arms pull off (fe.coil), the bundles that are due
+    record     a history row every ``rec.every`` steps (fe.layout's tables)
 
-    held coil  : x = R(theta_{n+1}) x_hub; then the peel fronts and bundles (fe.coil)
-
-The kernels take the named data of :mod:`spinweb_fe.fe.model` (``Model.kernel``: elements,
-links, nodes, hub, coil), :mod:`spinweb_fe.fe.state` (``State``), the law (``KernelLaw``) and
-``Recording`` below. The features they call live in their own files of ``fe/`` (contact, hub,
-coil, control, rupture, forces): the numba cache of every ``fe`` kernel is stamped with the whole folder
-(:mod:`spinweb_fe.fe.cache`), so an edit of a helper recompiles its callers. Constants come
-in as arguments, never as module globals. The element pass uses ``error_model="numpy"`` so
-that divisions carry no Python zero-division check (a branch per element); its divisor is
-never zero.
+Each phase is one call here, named once; which hub it runs is chosen by argument type:
+``advance`` takes the hub as two arguments, ``axis`` (fe.axis.Axis, None for a free hub) and
+``body`` (fe.rigid.Body, None on a fixed axis), and numba prunes a branch on an argument that
+is None before typing it, so a scene compiles and runs the phases of its own hub only (as
+the strength pass and the threads are chosen). The phases that differ by hub are inlined at
+numba's IR level (``inline="always"``): their pairs of branches are pruned in ``advance``
+after inlining, and none of them costs a compile of its own. Constants come in as arguments
+(the layouts' slots in ``Recording.slots``), never as module globals.
 """
 
 from __future__ import annotations
@@ -27,22 +30,18 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, held_moment, open_bundles,
+from spinweb_fe.fe.axis import (NodeMotion, axis_kick, axis_nodes, axis_row, axis_start,
+                                axis_vector_row, place_rigid)
+from spinweb_fe.fe.body import (body_drift, body_kick, body_nodes, body_release, body_row,
+                                body_start, body_state)
+from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
                                 payout_allowed, place_held, release_fronts, scatter_bundles)
-from spinweb_fe.fe.contact import contact_node
-from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.forces import element_forces, node_forces
-from spinweb_fe.fe.hub import hub_step, moment_of, place_rigid
+from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
-from spinweb_fe.fe.vectors import fixed_hub_row, node_momenta, plane_stats
-
-#: columns of the per-record scalar table that ``advance`` writes (see
-#: spinweb_fe.record.history for units and meaning)
-REC_COLUMNS = ("time", "hub_angle", "hub_omega", "hub_torque", "kinetic_energy",
-               "strain_energy", "torque_work", "damping_dissipation", "contact_dissipation",
-               "angular_momentum", "max_tension")
+from spinweb_fe.fe.vectors import node_momenta, plane_stats
 
 
 class Recording(NamedTuple):
@@ -54,16 +53,16 @@ class Recording(NamedTuple):
         Steps between two rows.
     probes : (p,) int64
         Nodes whose positions and velocities are recorded (arm tips and spines).
-    table : (rows, len(REC_COLUMNS)) float64
-        Scalar columns of each row.
+    table : (rows, fe.layout.ROW_WIDTH) float64
+        The scalar row (fe.layout.ROW, then the step's energy terms).
     probe_pos, probe_vel : (rows, p, 3) float64 [m], [m/s]
         Probe positions x_n and mean velocities (v_{n-1/2} + v_{n+1/2}) / 2.
-    arm_table : (rows, n_arms, 5) float64
-        Per arm: front and next outer level coordinates [m], pinned on the rim (1/0), held
-        back by the payout law (1/0), allowed payout [m] (see record_arms).
-    strength_table : (rows, 5) float64
-        Scenes with a failure strain: the row of fe.rupture.STRENGTH_COLUMNS ((rows, 0)
-        otherwise).
+    arm_table : (rows, n_arms, len(fe.layout.ARM)) float64
+        Per arm of a held coil: the row of fe.layout.ARM (see :func:`record_arms`).
+    strength_table : (rows, len(fe.layout.STRENGTH)) float64
+        Scenes with a failure strain: the row of fe.layout.STRENGTH ((rows, 0) otherwise).
+    slots : fe.layout.Slots
+        The column indices of every layout.
     """
 
     every: int
@@ -73,160 +72,7 @@ class Recording(NamedTuple):
     probe_vel: np.ndarray
     arm_table: np.ndarray
     strength_table: np.ndarray
-
-
-class NodeMotion(NamedTuple):
-    """The node arrays of the State that the node pass updates or reads (a flat tuple, as
-    the parallel kernels take it)."""
-
-    pos: np.ndarray
-    vel: np.ndarray
-    mass: np.ndarray
-    inv_mass: np.ndarray
-
-
-@njit(inline="always", error_model="numpy")
-def drift(mv, dt, lo, hi):
-    """x_{n+1} = x_n + dt v_{n+1/2} for the nodes of lo..hi-1 with active mass (a straight
-    loop: the others add 0 dt v)."""
-    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
-    for q in range(hi - lo):
-        i = np.uint64(lo + q)
-        h = dt if inv_mass[i] > 0.0 else 0.0
-        pos[i, 0] += h * vel[i, 0]
-        pos[i, 1] += h * vel[i, 1]
-        pos[i, 2] += h * vel[i, 2]
-
-
-@njit(inline="always", error_model="numpy")
-def kick_drift(mv, force, dt, lo, hi):
-    """v += dt f / m, then :func:`drift`, in one straight loop (no contact, no records)."""
-    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
-    for q in range(hi - lo):
-        i = np.uint64(lo + q)
-        im = inv_mass[i]
-        h = dt if im > 0.0 else 0.0  # a node without active mass stays where it is
-        for d in range(3):
-            v = vel[i, d] + dt * force[i, d] * im
-            vel[i, d] = v
-            pos[i, d] += h * v
-
-
-@njit(inline="always", error_model="numpy")
-def kick(mv, force, contact, inside, r0, dt, lo, hi, move):
-    """v_{n+1/2} = v_{n-1/2} + dt f / m for nodes lo..hi-1 in a straight loop that LLVM
-    vectorises (a node without active mass, 1/m = 0: tied, held, inside a bundle, adds
-    nothing); ``inside[i]`` marks a contact node with active mass heading inside the hub
-    cylinder (x_n + dt v_{n+1/2} within r0 of the axis). With ``move`` the same loop drifts
-    every other node with active mass (:func:`drift`): the marked ones wait for their
-    contact. Returns whether any node is marked."""
-    pos, vel, inv_mass = mv.pos, mv.vel, mv.inv_mass
-    hit = 0
-    for q in range(hi - lo):
-        i = np.uint64(lo + q)
-        im = inv_mass[i]
-        vx = vel[i, 0] + dt * force[i, 0] * im
-        vy = vel[i, 1] + dt * force[i, 1] * im
-        vz = vel[i, 2] + dt * force[i, 2] * im
-        vel[i, 0] = vx
-        vel[i, 1] = vy
-        vel[i, 2] = vz
-        px = pos[i, 0] + dt * vx
-        py = pos[i, 1] + dt * vy
-        into = (px * px + py * py < r0 * r0) and contact[i] and im > 0.0
-        inside[i] = into
-        h = dt if move and im > 0.0 and not into else 0.0
-        pos[i, 0] += h * vx
-        pos[i, 1] += h * vy
-        pos[i, 2] += h * vz
-        hit |= 1 if into else 0
-    return hit > 0
-
-
-@njit(inline="always")
-def touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi, move):
-    """Cable-hub contact of the nodes of lo..hi-1 marked ``inside``, in node order (friction
-    turns the hub node by node); with ``move`` each then takes its drift. Returns (omega,
-    contact dissipation [J])."""
-    pos, vel, node_mass = mv.pos, mv.vel, mv.mass
-    diss = 0.0
-    for i in range(lo, hi):
-        if inside[i]:
-            omega, d = contact_node(i, pos, vel, force, node_mass[i], hub.radius, hub.friction,
-                                    j_eff, omega, dw_force, dt)
-            diss += d
-            if move:
-                for k in range(3):
-                    pos[i, k] += dt * vel[i, k]
-    return omega, diss
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def spin_sums(mv, lo, hi):
-    """(sum m |v|^2, sum m (x v_y - y v_x)) over the nodes of lo..hi-1 with active mass."""
-    pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
-    ke = 0.0
-    lz = 0.0
-    for i in range(lo, hi):
-        if inv_mass[i] > 0.0:
-            m = node_mass[i]
-            ke += m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-            lz += m * (pos[i, 0] * vel[i, 1] - pos[i, 1] * vel[i, 0])
-    return ke, lz
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi, record,
-                    out):
-    """Node pass over nodes lo..hi-1 on a record step or with a hub (:func:`node_pass` takes
-    the other steps in one straight loop): v += dt f/m, cable-hub contact, x += dt v.
-    ``mv``: :class:`NodeMotion`; nodes with no active mass (tied, held, inside a bundle)
-    stay; ``j_eff`` [kg m^2] is the hub's inertia now; ``inside`` (n,) bool: scratch for the
-    nodes heading inside the hub. Contact is looked at only in a block where some node heads
-    inside the hub. On record steps ``out[:4]`` receives the kinetic energy and angular
-    momentum sums before and after the update. Returns (omega, contact dissipation [J])."""
-    contact = nodes.contact
-    r0 = hub.radius
-    diss = 0.0
-    if not record:  # one loop; the nodes heading inside get their contact, then move
-        if kick(mv, force, contact, inside, r0, dt, lo, hi, True):
-            omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
-                                    True)
-        return omega, diss
-    out[0], out[2] = spin_sums(mv, lo, hi)
-    if kick(mv, force, contact, inside, r0, dt, lo, hi, False):  # v_{n+1/2}, no drift yet
-        omega, diss = touch_hub(hub, mv, force, inside, omega, dw_force, j_eff, dt, lo, hi,
-                                False)
-    out[1], out[3] = spin_sums(mv, lo, hi)
-    out[0] *= 0.5
-    out[1] *= 0.5
-    drift(mv, dt, lo, hi)  # x_{n+1} = x_n + dt v_{n+1/2}
-    return omega, diss
-
-
-@njit(cache=True, parallel=True)
-def integrate_threads(nodes, hub, mv, force, inside, omega, dw_force, j_eff, dt, nout, chunks,
-                      record):
-    """:func:`integrate_nodes` on several threads (frictionless contact only: friction turns
-    the hub node by node): node block b (``nout.shape[0]`` blocks of equal size) into
-    nout[b] = (ke0, ke1, lz0, lz1, contact dissipation), the blocks in one contiguous chunk
-    per thread."""
-    n = force.shape[0]
-    nb = nout.shape[0]
-    size = -(-n // nb)
-    for c in prange(chunks):
-        for b in range(nb * c // chunks, nb * (c + 1) // chunks):
-            _, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, inside, omega, dw_force,
-                                            j_eff, dt, b * size, min(n, (b + 1) * size),
-                                            record, nout[b])
-
-
-@njit(cache=True, parallel=True)
-def kick_drift_threads(mv, force, dt, chunks):
-    """:func:`kick_drift` of every node, one contiguous range of nodes per thread."""
-    n = force.shape[0]
-    for c in prange(chunks):
-        kick_drift(mv, force, dt, n * c // chunks, n * (c + 1) // chunks)
+    slots: tuple
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -256,38 +102,75 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
     return se, tmax, pdamp
 
 
-@njit(cache=True)
-def node_pass(nodes, hub, mv, j_eff, work, w_old, w_new, dt, sums, record, threads=None):
-    """Velocity and position update of every free node: one straight loop when there is
-    nothing to sum and no hub to touch, else in node blocks (``nout`` (blocks, 5): their
-    partial sums); on several threads when contact is frictionless. ``sums[:5]`` receives
-    the kinetic energy and angular momentum sums (record steps) and the contact dissipation,
-    added in block order. Returns (omega_{n+1/2} after friction, contact dissipation [J])."""
-    force, nout, inside = work.force, work.nout, work.inside
-    n = force.shape[0]
-    if not (record or hub.radius > 0.0):  # nothing to sum, no contact: one straight loop
-        if threads is None:
-            kick_drift(mv, force, dt, 0, n)
-        else:
-            kick_drift_threads(mv, force, dt, threads)
-        sums[4] = 0.0
-        return w_new, 0.0
-    nb = nout.shape[0]
-    size = -(-n // nb)
-    w = w_new
-    if threads is not None and hub.friction == 0.0:  # None: pruned by numba
-        integrate_threads(nodes, hub, mv, force, inside, w_new, w_new - w_old, j_eff, dt, nout,
-                          threads, record)
-    else:
-        for b in range(nb):
-            w, nout[b, 4] = integrate_nodes(nodes, hub, mv, force, inside, w, w_new - w_old,
-                                            j_eff, dt, b * size, min(n, (b + 1) * size),
-                                            record, nout[b])
-    for k in range(5):
-        sums[k] = 0.0
-        for b in range(nb):
-            sums[k] += nout[b, k]
-    return w, sums[4]
+@njit(inline="always")
+def hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, holding, hs, t, dt):
+    """Loads on the hub at x_n and its kick over the step: fe.axis.AxisKick (fixed axis) or
+    fe.body.BodyKick (free hub); ``holding``: some arm still has levels on the hub."""
+    if axis is not None:
+        kick = axis_kick(hub.tied_idx, coil, cs, law, pos, force, holding, hs.rate[0],
+                         hs.inertia[0], t, dt)
+    if body is not None:
+        kick = body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt)
+    return kick
+
+
+@njit(inline="always")
+def move_nodes(axis, body, nodes, hub, mv, work, env, rs, kick, t, dt, sums, record,
+               threads):
+    """Kick, hub contact and drift of every free node in one pass. Returns (the kick with
+    the hub's rate after the contacts, contact dissipation [J], gravity-gradient work [J])."""
+    if axis is not None:
+        kick, diss = axis_nodes(nodes, hub, mv, kick, work, dt, sums, record, threads)
+        wgrav = 0.0
+    if body is not None:
+        kick, diss, wgrav = body_nodes(nodes, hub, mv, work.force, env, t, rs, kick, dt,
+                                       record, sums)
+    return kick, diss, wgrav
+
+
+@njit(inline="always")
+def hub_drift(axis, body, rs, kick, theta, dt):
+    """The hub's drift over the step; returns theta_{n+1} [rad]."""
+    if axis is not None:
+        theta = theta + dt * kick.rate_new
+    if body is not None:
+        theta = body_drift(rs, kick, dt, theta)
+    return theta
+
+
+@njit(inline="always")
+def place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, omega, holding):
+    """The tied nodes and (``holding``) the held coil move with the hub at theta_{n+1}."""
+    if axis is not None:
+        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, theta, omega)
+        if holding:
+            place_held(coil, cs, pos, vel, theta, omega)
+    if body is not None:
+        place_body(hub, coil, cs, rs, pos, vel)
+
+
+@njit(inline="always")
+def release(axis, body, elems, nodes, hub, coil, cs, rs, mv, j_eff, t, broken):
+    """Release the front levels the arms pull off at time t (fe.coil.release_fronts);
+    returns the fixed axis's effective inertia without them [kg m^2] (a free body
+    reassembles itself)."""
+    if axis is not None:
+        j_eff = release_fronts(coil, cs, elems, nodes, mv.pos, mv.mass, mv.inv_mass, j_eff, t,
+                               broken)
+    if body is not None:
+        body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken)
+    return j_eff
+
+
+@njit(inline="always")
+def hub_now(axis, body, rs, kick, j_eff):
+    """(rate omega_{n+1/2} about the hub axis [rad/s], effective inertia [kg m^2]) after the
+    step."""
+    if axis is not None:
+        out = (kick.rate_new, j_eff)
+    if body is not None:
+        out = body_state(rs)
+    return out
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -310,152 +193,166 @@ def probe_velocities(rec, k, vel, vprobe):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def write_row(row, t, theta, w_old, w_new, torque, j_eff, sums, se, tmax, totals, incr):
-    """One history row at step n (REC_COLUMNS): energies as the mean of the two half-step
-    values, accumulated work and dissipation up to t_n (``incr``: this step's increments)."""
-    row[0] = t
-    row[1] = theta
-    row[2] = 0.5 * (w_old + w_new)
-    row[3] = torque
-    row[4] = 0.5 * (sums[0] + sums[1]) + 0.25 * j_eff * (w_old * w_old + w_new * w_new)
-    row[5] = se
-    row[6] = totals.torque_work[0] + 0.5 * incr[0]
-    row[7] = totals.damping_dissipation[0] + 0.5 * incr[1]
-    row[8] = totals.contact_dissipation[0] + 0.5 * incr[2]
-    row[9] = 0.5 * (sums[2] + sums[3]) + j_eff * 0.5 * (w_old + w_new)
-    row[10] = tmax
+def record_arms(coil, cs, table, t, sa):
+    """Per arm at a record step (see fe.coil.front_row), into the slots ``sa`` of
+    fe.layout.ARM: the front's and the next outer level's arm coordinates, pinned on the rim
+    (1/0), held back by the payout law (1/0), and the paid-out length the law allows (NaN:
+    free payout)."""
+    allowed = payout_allowed(coil, t)
+    for k in range(table.shape[0]):
+        row = table[k]
+        row[sa.front], row[sa.next], row[sa.rim], row[sa.held_back] = front_row(coil, cs, k, t)
+        row[sa.allowed] = allowed if np.isfinite(allowed) else np.nan
+
+
+@njit(inline="always")
+def hub_plane(axis, body, kick):
+    """(centre, unit normal) of the hub's plane at x_n."""
+    if axis is not None:
+        plane = (np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    if body is not None:
+        plane = (kick.hull[0], kick.hull[1])
+    return plane
+
+
+@njit(inline="always")
+def hub_row(axis, body, hub, coil, cs, nodes, rs, kick, sums, pos, theta, vec, k, vs):
+    """The hub's part of row k: (mean rate about its axis [rad/s], kinetic energy [J],
+    angular momentum about +z [N m s]) of the scalar row, and its part of the vector row
+    ``vec[k]`` (when recorded; slots ``vs``)."""
+    if axis is not None:
+        out = axis_row(kick, sums)
+        if vec is not None:
+            axis_vector_row(hub, coil, cs, nodes, pos, theta, out[0], kick.j_eff, vec[k], vs)
+    if body is not None:
+        out = body_row(rs, kick, sums, vec[k], vs)
+    return out
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def record_arms(coil, cs, table, t):
-    """Per arm at a record step (see fe.coil.front_row): the front's and the next outer
-    level's arm coordinates, pinned on the rim (1/0), held back by the payout law (1/0),
-    and the paid-out length the law allows (NaN: free payout)."""
-    allowed = payout_allowed(coil, t)
-    for k in range(table.shape[0]):
-        table[k, 0], table[k, 1], table[k, 2], table[k, 3] = front_row(coil, cs, k, t)
-        table[k, 4] = allowed if np.isfinite(allowed) else np.nan
+def write_row(row, sr, t, theta, w, torque, ke, se, lz, tmax, totals, incr):
+    """One scalar row at step n (slots ``sr`` of fe.layout.ROW): energies as the mean of the
+    two half-step values, each energy term accumulated up to t_n (``incr``: this step's
+    increments)."""
+    row[sr.time] = t
+    row[sr.hub_angle] = theta
+    row[sr.hub_omega] = w
+    row[sr.hub_torque] = torque
+    row[sr.kinetic_energy] = ke
+    row[sr.strain_energy] = se
+    row[sr.angular_momentum] = lz
+    row[sr.max_tension] = tmax
+    for j in range(totals.shape[0]):
+        row[sr.energy + j] = totals[j] + 0.5 * incr[j]
 
 
 @njit(cache=True, nogil=True)
-def advance(model, law, state, work, rec, dt, nsteps, vec=None, threads=None):
+def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, threads=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
-    ``model`` is the kernel view of the Model (``Model.kernel``); ``work`` the scratch of the
+    ``model`` is the kernel view of the Model (``Model.kernel``), ``axis`` and ``body`` its
+    hub (``Model.hub_kind``: one of them None); ``work`` the scratch of the
     force passes (:func:`spinweb_fe.fe.forces.make_work`). Row k of ``rec.table`` holds
-    REC_COLUMNS at integer step n,
-    ``rec.probe_pos/vel`` the probe positions x_n and mean velocities, ``rec.arm_table`` the
-    arm data of :func:`record_arms`, and ``vec`` (rows, fe.vectors.VEC_WIDTH), if given, the
-    momentum vectors, the hub's pose and the distances from the hub plane (a run that can
-    leave the plane; without it numba compiles none of that). ``threads``: None for one
-    thread (numba compiles no thread kernel), else the number of threads, which run the
-    workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
+    fe.layout.ROW and the energy terms at integer step n, ``rec.probe_pos/vel`` the probe
+    positions x_n and mean velocities, ``rec.arm_table`` the arm rows of
+    :func:`record_arms`, and ``vec`` (rows, fe.layout.VEC_WIDTH), if given, the momentum
+    vectors, the hub's pose and the distances from the hub plane (a run that can leave the
+    plane, and every free hub; without it numba compiles none of that). ``threads``: None
+    for one thread (numba compiles no thread kernel), else the number of threads, which run
+    the workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
     reduction order). Returns (status, rows): 0 ok, 1 non-finite.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
-    strength = model.strength
+    env, strength = model.env, model.strength
     has_strength = checks_strength(strength)
-    pos = state.node_pos
-    vel = state.node_vel
-    force = work.force
-    sums = np.zeros(5)
-    incr = np.zeros(3)
-    vprobe = np.zeros((rec.probes.shape[0], 3))
+    pos, vel, force = state.node_pos, state.node_vel, work.force
     totals = state.totals
+    sums = np.zeros(5)
+    incr = np.zeros(totals.shape[0])
+    vprobe = np.zeros((rec.probes.shape[0], 3))
     has_coil = coil.level_nodes.shape[0] > 0
     # the state's arrays taken out once: every use of a tuple's field inside the loop, and
     # every tuple handed to a compiled function, costs NRT reference counts (an atomic add
     # per array), which made 40 % of a 200-element step
-    links, bundles, cs, ss = model.links, model.bundles, state.coil, state.strength
+    links, bundles, cs, ss, rs, hs = model.links, model.bundles, state.coil, state.strength, \
+        state.rigid, state.hub
     mass, inv_mass, broken = state.node_mass, state.node_inv_mass, ss.broken
     mv = NodeMotion(pos, vel, mass, inv_mass)
-    hub_angle, hub_rate, hub_inertia = state.hub.angle, state.hub.rate, state.hub.inertia
+    hub_angle, hub_rate, hub_inertia = hs.angle, hs.rate, hs.inertia
     step_no, time_now = state.step, state.time
-    torque_work = totals.torque_work
-    damping_dissipation = totals.damping_dissipation
-    contact_dissipation = totals.contact_dissipation
     arm_ptr, front = coil.arm_ptr, cs.front
+    sl = rec.slots
+    term = sl.term
     nrec = np.int64(0)  # not the literal 0: a literal argument compiles callees twice
     for _ in range(nsteps):
         step = step_no[0]
-        holding = any_held(arm_ptr, front)
         record = step % rec.every == 0
         t = step * dt
+        holding = any_held(arm_ptr, front)
+        # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads)
-        tau = moment_of(pos, force, hub.tied_idx)
-        if holding:
-            tau += held_moment(coil, cs, pos, force)
         if has_coil:
             gather_bundles(bundles, cs, force)
-        w_old = hub_rate[0]
-        j_eff = hub_inertia[0]
-        torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
-        if record:
+        # loads on the hub and its kick
+        kick = hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, holding, hs, t,
+                         dt)
+        if record:  # the row's positions x_n and v_{n-1/2}
             probe_positions(rec, nrec, pos, vel, vprobe)
-            record_arms(coil, cs, rec.arm_table[nrec], t)
+            record_arms(coil, cs, rec.arm_table[nrec], t, sl.arm)
             if has_strength:
-                record_strength(ss, rec.strength_table[nrec])
+                record_strength(ss, rec.strength_table[nrec], sl.strength)
             if vec is not None:
                 vec[nrec] = 0.0
-                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
-                plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]),
-                            vec[nrec])
-        theta = hub_angle[0]
-        w_new, dcontact = node_pass(nodes, hub, mv, j_eff, work, w_old, w_new, dt, sums,
-                                    record, threads)
+                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5, sl.vec)
+                centre, normal = hub_plane(axis, body, kick)
+                plane_stats(pos, nodes.inv_mass, centre, normal, vec[nrec], sl.vec)
+        # kick, constraints and contact, drift of the free nodes
+        kick, dcontact, wgrav = move_nodes(axis, body, nodes, hub, mv, work, env, rs, kick, t,
+                                           dt, sums, record, threads)
         if has_coil:
             scatter_bundles(bundles, cs, pos, vel)
-        incr[0] = torque * dt * 0.5 * (w_new + w_old)  # exact discrete work on the hub
-        incr[1] = pdamp * dt
-        incr[2] = dcontact
-        if record:
-            write_row(rec.table[nrec], t, theta, w_old, w_new, torque, j_eff, sums, se, tmax,
-                      totals, incr)
+        incr[term.torque_work] = kick.torque * dt * 0.5 * (kick.rate_old + kick.rate_new)
+        incr[term.damping_dissipation] = pdamp * dt
+        incr[term.contact_dissipation] = dcontact
+        incr[term.gravity_gradient_work] = wgrav
+        theta = hub_angle[0]
+        if record:  # the row of step n: mean velocities, energies, momenta
             if vec is not None:
-                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5)
-                fixed_hub_row(hub, coil, cs, nodes, pos, theta, 0.5 * (w_old + w_new),
-                              j_eff, vec[nrec])
-            if not (np.isfinite(rec.table[nrec, 4]) and np.isfinite(se)):
+                node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5, sl.vec)
+            w, ke, lz = hub_row(axis, body, hub, coil, cs, nodes, rs, kick, sums, pos, theta,
+                                vec, nrec, sl.vec)
+            write_row(rec.table[nrec], sl.row, t, theta, w, kick.torque, ke, se, lz, tmax,
+                      totals, incr)
+            if not (np.isfinite(ke) and np.isfinite(se)):
                 return 1, nrec
             probe_velocities(rec, nrec, vel, vprobe)
             nrec += 1
-        hub_angle[0] = theta + dt * w_new
-        hub_rate[0] = w_new
-        torque_work[0] += incr[0]
-        damping_dissipation[0] += incr[1]
-        contact_dissipation[0] += incr[2]
+        # the hub's drift
+        hub_angle[0] = hub_drift(axis, body, rs, kick, theta, dt)
+        for j in range(incr.shape[0]):
+            totals[j] += incr[j]
         step_no[0] = step + 1
         time_now[0] = (step + 1) * dt
-        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, hub_angle[0], w_new)
-        if holding:  # the held nodes move with the hub; then the fronts the arms pull off
-            place_held(coil, cs, pos, vel, hub_angle[0], w_new)
-            hub_inertia[0] = release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass,
-                                            hub_inertia[0], (step + 1) * dt, broken)
-        if has_coil:  # and the bundles that are due open
+        # tied and held nodes with the hub; the fronts the arms pull off; bundles due
+        place_bound(axis, body, hub, coil, cs, rs, pos, vel, hub_angle[0], kick.rate_new,
+                    holding)
+        j_eff = hub_inertia[0]
+        if holding:
+            j_eff = release(axis, body, elems, nodes, hub, coil, cs, rs, mv, j_eff,
+                            (step + 1) * dt, broken)
+        if has_coil:
             open_bundles(bundles, cs, nodes, mass, inv_mass, (step + 1) * dt)
+        hub_rate[0], hub_inertia[0] = hub_now(axis, body, rs, kick, j_eff)
     return 0, nrec
 
 
-def start_half_step(model, law, state, force, dt):
-    """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0;
-    ``force`` (n, 3): the internal forces at x_0 (fe.forces.internal_forces).
-
-    Python, not a kernel: it runs once, and a kernel taking the whole model and state costs
-    about a second of cold compile for their unboxing alone. The compiled helpers it calls
-    are the step loop's own; the arithmetic is the same, in the same order (bit for bit)."""
-    hub, coil = model.hub, model.coil
-    pos = state.node_pos
-    vel = state.node_vel
-    if model.bundles is not None:
-        gather_bundles(model.bundles, state.coil, force)
-    vel -= 0.5 * dt * force * state.node_inv_mass[:, None]
-    tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil, state.coil, pos, force)
-    rate = state.hub.rate
-    prescribed, value = eval_control(law, 0.0, rate[0])
-    if prescribed:
-        _, rate[0] = eval_control(law, -0.5 * dt, rate[0])
+def start_half_step(model, body, law, state, force, dt):
+    """Turn initial velocities v_0, omega_0 into v_{-1/2}, omega_{-1/2} = v_0 - dt/2 a_0
+    (and the free body's V, Pi); ``model``, ``law``: the kernel views, ``body`` the free
+    hub's (None on a fixed axis); ``force`` (n, 3): the internal forces at x_0
+    (fe.forces.internal_forces)."""
+    if body is None:
+        axis_start(model, law, state, force, dt)
     else:
-        rate[0] -= 0.5 * dt * (value + tau) / state.hub.inertia[0]
-    if model.bundles is not None:
-        scatter_bundles(model.bundles, state.coil, pos, vel)
+        body_start(model, law, state, force, dt)

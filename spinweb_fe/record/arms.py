@@ -117,9 +117,10 @@ class ArmTracker:
     def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0,
                 rate=False) -> dict:
         """History columns of T rows, each (T, n_arms): ``arm_length``, ``arm_angle``,
-        ``tip_omega``, ``tip_position`` (T, n_arms, 3), and with a held coil's ``arm_table`` (T, n_arms, 5) from the step loop
-        also ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under
-        a rate payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
+        ``tip_omega``, ``tip_position`` (T, n_arms, 3), and with a held coil's arm rows
+        ``arm_table`` from the step loop (fe.layout.ARM by name, each (T, n_arms)) also
+        ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under a rate
+        payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
         ``hub_angle``."""
         L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table, rate)
         out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip,
@@ -130,15 +131,15 @@ class ArmTracker:
         speed = np.where(np.isfinite(prev) & np.isfinite(sd), (prev - sd) / row_dt, 0.0)
         if len(sd):
             self.prev_sd = sd[-1].copy()
-        out.update(payout_front=arm_table[..., 0].copy(), payout_speed=speed)
+        out.update(payout_front=arm_table["front"].copy(), payout_speed=speed)
         if rate:
-            out["payout_allowed"] = arm_table[..., 4].copy()
+            out["payout_allowed"] = arm_table["allowed"].copy()
             self._watch(arm_table, sd, rows["time"])
         return out
 
     def update(self, probe_pos, probe_vel, hub_angle, arm_table=None, rate=False):
         """(T, n_arms, 3) tip positions / velocities, (T,) hub angle and optionally a held
-        coil's (T, n_arms, 5) arm table (``rate``: paid out by a rate law) -> (L, phi,
+        coil's arm rows (fe.layout.ARM by name; ``rate``: paid out by a rate law) -> (L, phi,
         omega_tip, departure coordinate), each (T, n_arms); the departure is NaN without a
         held coil."""
         T, n = probe_pos.shape[0], self.n
@@ -147,22 +148,23 @@ class ArmTracker:
         for k in range(n):
             for t in range(T):
                 th_r = hub_angle[t] + self.root[k]
-                row = None if arm_table is None else arm_table[t, k]
                 # a held front on the rim anchors the arm under a rate payout (the
                 # restraint holds it there) or when the arm swung over its own coil
                 # (unwound from R's side and on the front's leading side)
                 alpha_a = 0.0
-                if row is not None and row[2] > 0.5:
-                    alpha_f = (row[0] - self.root_coord) / self.r0
+                on_rim = arm_table is not None and arm_table["rim"][t, k] > 0.5
+                if on_rim:
+                    front = arm_table["front"][t, k]
+                    alpha_f = (front - self.root_coord) / self.r0
                     swung = not (self.mode[k] == WRAPPED and self.sense[k] == self.wrap)
-                    if rate or row[3] > 0.5 or (swung and self._leading(alpha_f, th_r,
-                                                                       tip_p[t, k])):
+                    if rate or arm_table["held_back"][t, k] > 0.5 or (
+                            swung and self._leading(alpha_f, th_r, tip_p[t, k])):
                         alpha_a = alpha_f
                 L[t, k], phi[t, k], a_d = self._about(k, alpha_a, th_r, tip_p[t, k])
                 self.prev_phi[k] = phi[t, k]
-                if row is not None:
-                    sd[t, k] = (self.root_coord + self.r0 * a_d if row[2] > 0.5 and a_d > 0
-                                else row[0])
+                if arm_table is not None:
+                    sd[t, k] = (self.root_coord + self.r0 * a_d if on_rim and a_d > 0
+                                else arm_table["front"][t, k])
         px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)
         omega_tip = (px * tip_v[..., 1] - py * tip_v[..., 0]) / r2
@@ -217,13 +219,13 @@ class ArmTracker:
         """Log when a rate payout's front waits: the law allows more than two level spacings
         beyond what the arm has paid out (the free part does not pull the coil off)."""
         paid = self.tip_coord - sd
-        lag = arm_table[..., 4] - paid
-        gap = np.abs(arm_table[..., 1] - arm_table[..., 0])
+        lag = arm_table["allowed"] - paid
+        gap = np.abs(arm_table["next"] - arm_table["front"])
         for k in range(self.n):
             for t in range(lag.shape[0]):
                 wait = bool(lag[t, k] > 2.0 * gap[t, k] and np.isfinite(paid[t, k]))
                 if wait and not self.waiting[k]:
                     log.info("t = %.4g s, arm %d: the payout waits for its arm (the law "
                              "allows %.4g m, %.4g m are paid out)", times[t], k,
-                             arm_table[t, k, 4], paid[t, k])
+                             arm_table["allowed"][t, k], paid[t, k])
                 self.waiting[k] = wait

@@ -7,6 +7,7 @@ import logging
 import numpy as np
 
 from spinweb_fe.errors import RunError
+from spinweb_fe.fe.layout import ENERGY
 from spinweb_fe.record.recorders import Recorder
 
 log = logging.getLogger(__name__)
@@ -16,15 +17,13 @@ ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, redu
 
 
 def energy_balance(h):
-    """KE + SE - W + D (should stay constant) for a history dict / row table; D counts the
-    rupture dissipation when the history has one (a scene with rupture), W the work of the
-    gravity gradient when there is one."""
-    bal = (h["kinetic_energy"] + h["strain_energy"] - h["torque_work"]
-           + h["damping_dissipation"] + h["contact_dissipation"])
-    if "rupture_dissipation" in h:
-        bal = bal + h["rupture_dissipation"]
-    if "gravity_gradient_work" in h:
-        bal = bal - h["gravity_gradient_work"]
+    """KE + SE + sum(sign * term) over the energy terms of fe.layout.ENERGY (works in,
+    dissipations out), which should stay constant, for a history dict; a term the history
+    does not have (a scene without it) counts zero."""
+    bal = h["kinetic_energy"] + h["strain_energy"]
+    for term in ENERGY:
+        if term.name in h:
+            bal = bal + term.sign * h[term.name]
     return bal
 
 

@@ -7,8 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.fe.step import REC_COLUMNS
-from spinweb_fe.fe.vectors import VEC_LAYOUT
+from spinweb_fe.fe.layout import ENERGY, ROW, STEP_TERMS, VECTOR, row_columns
 
 
 class Column(NamedTuple):
@@ -18,21 +17,11 @@ class Column(NamedTuple):
     doc: str
 
 
+#: the columns the step loop records (fe.layout's tables: scalar row, energy terms, vector
+#: row) and those derived from them here and in record/ (arm measures, strength)
 COLUMNS = {
-    "time": Column("s", "simulated time"),
-    "hub_angle": Column("rad", "hub rotation angle about +z (counter-clockwise positive); "
-                               "free hub: its turn about its own axis"),
-    "hub_omega": Column("rad/s", "hub angular velocity omega_centre (free hub: about its "
-                                 "own axis)"),
-    "hub_torque": Column("N m", "control torque applied to the hub (about its axis)"),
-    "kinetic_energy": Column("J", "kinetic energy of everything, hub included"),
-    "strain_energy": Column("J", "elastic energy stored in the cables"),
-    "torque_work": Column("J", "work done on the hub by the control torque"),
-    "damping_dissipation": Column("J", "energy dissipated by axial cable damping"),
-    "contact_dissipation": Column("J", "energy lost in cable-hub contact (impact and friction)"),
-    "angular_momentum": Column("N m s", "angular momentum about the spin axis (+z), hub "
-                                        "included"),
-    "max_tension": Column("N", "largest cable tension"),
+    **{c.name: Column(c.units, c.doc) for c in ROW},
+    **{t.name: Column(t.units, t.doc) for t in ENERGY},
     "arm_length": Column("m", "deployed (free) arm length L per arm, as in the analytical "
                               "model"),
     "arm_angle": Column("rad", "arm angle phi from the radial at the root, counter-clockwise "
@@ -53,49 +42,26 @@ COLUMNS = {
     "utilisation": Column("1", "failure strain given: largest strain / failure strain over "
                                "the elements and the steps since the previous row"),
     "broken_elements": Column("1", "rupture: number of broken elements"),
-    "rupture_dissipation": Column("J", "rupture: strain energy the broken elements held when "
-                                       "they broke"),
-    "linear_momentum": Column("kg m/s", "out of the plane: total linear momentum, hub "
-                                        "included, inertial frame"),
-    "angular_momentum_vector": Column("N m s", "out of the plane: total angular momentum "
-                                               "about the origin, hub included"),
-    "hub_position": Column("m", "out of the plane: the hub centre, inertial frame"),
-    "hub_quaternion": Column("1", "out of the plane: the hub's attitude (w, x, y, z), hub "
-                                  "frame to inertial"),
-    "hub_axis": Column("1", "out of the plane: the hub's spin axis (unit vector), inertial "
-                            "frame"),
-    "hub_angular_velocity": Column("rad/s", "out of the plane: the hub's angular velocity "
-                                            "vector, inertial frame"),
-    "out_of_plane_rms": Column("m", "out of the plane: RMS over the web's nodes (not the "
-                                    "hub's) of their distance from the hub plane"),
-    "out_of_plane_max": Column("m", "out of the plane: the largest distance of a web node "
-                                    "from the hub plane"),
-    "gravity_gradient_work": Column("J", "gravity gradient: work of the tidal field on "
-                                         "nodes and hub"),
+    **{c.name: Column(c.units, c.doc) for c in VECTOR},
 }
 #: columns that only some scenes or models have (a held coil, a rate payout, a failure
-#: strain, rupture)
-OPTIONAL = ("payout_front", "payout_speed", "payout_allowed", "restraint_work", "max_strain",
-            "max_strain_element", "max_strain_arm", "utilisation", "broken_elements",
-            "rupture_dissipation") + tuple(name for name, _ in VEC_LAYOUT)
+#: strain, rupture, an energy term a scene may lack, the vector row)
+OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "restraint_work", "max_strain",
+             "max_strain_element", "max_strain_arm", "utilisation", "broken_elements")
+            + tuple(t.name for t in ENERGY if t.present is not None)
+            + tuple(c.name for c in VECTOR))
 #: name -> SI unit of every history dataset
 HISTORY_UNITS = {name: c.units for name, c in COLUMNS.items()}
 
 
-def table_rows(table: np.ndarray, nrec: int) -> dict:
-    """The scalar columns (REC_COLUMNS) of the first ``nrec`` rows of a step-loop table."""
-    return {name: table[:nrec, j].copy() for j, name in enumerate(REC_COLUMNS)}
-
-
-def vector_rows(vec: np.ndarray, gravity: bool) -> dict:
-    """The vector columns (fe.vectors.VEC_LAYOUT) of a step-loop vector table: (T, w)
-    arrays, (T,) for width 1; ``gravity_gradient_work`` only with the gravity gradient."""
-    out, j = {}, 0
-    for name, width in VEC_LAYOUT:
-        if name != "gravity_gradient_work" or gravity:
-            out[name] = vec[:, j].copy() if width == 1 else vec[:, j:j + width].copy()
-        j += width
-    return out
+def table_rows(table: np.ndarray, nrec: int, model) -> dict:
+    """The scalar columns of the first ``nrec`` rows of a step-loop table: fe.layout.ROW and
+    the step's energy terms that ``model`` can have (Term.present)."""
+    rows = row_columns(table, nrec)
+    for term in STEP_TERMS:
+        if term.present is not None and not term.present(model):
+            del rows[term.name]
+    return rows
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:

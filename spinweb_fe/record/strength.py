@@ -27,19 +27,17 @@ def elem_arm(mesh) -> np.ndarray:
     return np.where(a[:, 0] >= 0, a[:, 0], a[:, 1]).astype(np.int64)
 
 
-def strength_columns(model, table: np.ndarray) -> dict:
-    """History columns of the strength table rows (T, 5) of a chunk (none without a failure
-    strain)."""
-    if not len(model.strength.fail):
-        return {}
-    elem = table[:, 2].astype(np.int64)
+def strength_columns(model, rows: dict) -> dict:
+    """History columns of a chunk's strength rows (fe.layout.STRENGTH by name, each (T,)) of
+    a scene with a failure strain: the broken count and the rupture dissipation with
+    rupture on; the arm of the peak's element added."""
+    elem = rows["max_strain_element"].astype(np.int64)
     arms = elem_arm(model.mesh)
-    cols = {"utilisation": table[:, 0].copy(), "max_strain": table[:, 1].copy(),
-            "max_strain_element": table[:, 2].copy(),
-            "max_strain_arm": np.where(elem >= 0, arms[np.maximum(elem, 0)], -1).astype(float)}
+    cols = {k: rows[k] for k in ("utilisation", "max_strain", "max_strain_element")}
+    cols["max_strain_arm"] = np.where(elem >= 0, arms[np.maximum(elem, 0)], -1).astype(float)
     if model.strength.rupture:
-        cols["broken_elements"] = table[:, 3].copy()
-        cols["rupture_dissipation"] = table[:, 4].copy()
+        cols["broken_elements"] = rows["broken_elements"]
+        cols["rupture_dissipation"] = rows["rupture_dissipation"]
     return cols
 
 

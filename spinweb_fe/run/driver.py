@@ -41,7 +41,8 @@ class Checkpointer(Recorder):
 
     def checkpoint(self, state, memory):
         t = float(state.time[0])
-        arrays = (state.node_pos, state.node_vel, *state.hub, *state.totals, *state.rigid)
+        arrays = (state.node_pos, state.node_vel, *state.hub, state.totals,
+                  *(state.rigid or ()))
         if not all(np.all(np.isfinite(a)) for a in arrays):
             raise RunError("non-finite state at a checkpoint (numerical instability)", time=t)
         w = self.writer

@@ -13,15 +13,15 @@ from typing import NamedTuple
 import numpy as np
 
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe import free_step, step
+from spinweb_fe.fe import step
 from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.forces import internal_forces, make_work
+from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS, STRENGTH, VEC_WIDTH, VECTOR, named
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.state import State
-from spinweb_fe.fe.vectors import VEC_WIDTH
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
-from spinweb_fe.record.history import hub_plane, table_rows, vector_rows
+from spinweb_fe.record.history import hub_plane, table_rows
 from spinweb_fe.record.recorders import Frame, RunInfo
 from spinweb_fe.record.strength import StrengthMonitor, strength_columns
 
@@ -65,10 +65,7 @@ def start(model: Model, control: Control, state: State, dt: float, work=None):
         work = make_work(model.n_nodes, model.n_elems)
     record = False  # from Python: typed bool, the same compiled passes as current_tension's
     internal_forces(model.elements, model.links, state.node_pos, state.node_vel, work, record)
-    if model.free_hub:
-        free_step.start_free(model.kernel, control.kernel, state, work.force, dt)
-    else:
-        step.start_half_step(model.kernel, control.kernel, state, work.force, dt)
+    step.start_half_step(model.kernel, model.body, control.kernel, state, work.force, dt)
 
 
 def records_vectors(model: Model, state: State) -> bool:
@@ -130,17 +127,17 @@ class _Chunks:
     """The step loop's buffers and the turning of its records into history rows."""
 
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
-        self.args = (model.kernel, control.kernel)
+        self.args = (model.kernel, *model.hub_kind, control.kernel)
         self.work = make_work(model.n_nodes, model.n_elems, threads)
         # None on one thread, so that numba compiles no thread kernel
         self.threads = None if threads == 1 else threads
         rows = ROWS_PER_CHUNK + 1
         n_probes = len(tracker.probes)
-        self.rec = step.Recording(rec_every, tracker.probes,
-                                  np.zeros((rows, len(step.REC_COLUMNS))),
+        self.rec = step.Recording(rec_every, tracker.probes, np.zeros((rows, ROW_WIDTH)),
                                   np.zeros((rows, n_probes, 3)), np.zeros((rows, n_probes, 3)),
-                                  np.zeros((rows, len(model.coil.arm_ptr) - 1, 5)),
-                                  np.zeros((rows, 5 if len(model.strength.fail) else 0)))
+                                  np.zeros((rows, len(model.coil.arm_ptr) - 1, len(ARM))),
+                                  np.zeros((rows, len(STRENGTH) if len(model.strength.fail)
+                                            else 0)), SLOTS)
         self.vec = np.zeros((rows, VEC_WIDTH)) if vectors or model.free_hub else None
         self.coiled = len(model.coil.level_nodes) > 0
         self.rate = len(model.coil.payout_t) > 0
@@ -150,19 +147,16 @@ class _Chunks:
         self.history = []
 
     def advance(self, state, dt, nsteps):
-        if self.model.free_hub:
-            return free_step.advance_free(*self.args, state, self.work, self.rec, self.vec,
-                                          dt, nsteps, self.threads)
         return step.advance(*self.args, state, self.work, self.rec, dt, nsteps, self.vec,
                             self.threads)
 
     def rows(self, nrec) -> dict:
-        rows = table_rows(self.rec.table, nrec)
-        arms = self.rec.arm_table[:nrec] if self.coiled else None
+        rows = table_rows(self.rec.table, nrec, self.model)
+        arms = named(self.rec.arm_table[:nrec], ARM) if self.coiled else None
         pos, vel = self.rec.probe_pos[:nrec], self.rec.probe_vel[:nrec]
         vectors = None
         if self.vec is not None:
-            vectors = vector_rows(self.vec[:nrec], self.model.env.n > 0)
+            vectors = named(self.vec[:nrec], VECTOR)
             if self.model.free_hub:  # the arms are measured in the hub's plane
                 pos, vel = hub_plane(pos, vel, vectors["hub_position"],
                                      vectors["hub_quaternion"])
@@ -170,7 +164,9 @@ class _Chunks:
         if vectors is not None:
             rows["tip_position"] = self.rec.probe_pos[:nrec, :self.tracker.n].copy()
             rows.update(vectors)
-        rows.update(strength_columns(self.model, self.rec.strength_table[:nrec]))
+        if len(self.model.strength.fail):
+            rows.update(strength_columns(self.model, named(self.rec.strength_table[:nrec],
+                                                           STRENGTH)))
         self.history.append(rows)
         return rows
 
