@@ -23,10 +23,12 @@ from spinweb_fe.record.history import quaternion_matrix
 from spinweb_fe.run.loop import Schedule, simulate
 
 R_ORBIT = 6.771e6  # [m] 400 km altitude
+CASES = Path(__file__).resolve().parents[1] / "cases"
 
 
-def hub_alone(omega, *, dt, end, inertia="", extra="", every=10):
-    """History of a free hub with two massless 1 m tethers, spinning at ``omega``."""
+def hub_alone(omega, *, dt, end, inertia="", extra="", every=10, motion="free"):
+    """History of a hub (free, or ``motion``) with two massless 1 m tethers, spinning at
+    ``omega``."""
     text = f"""
 [tethers]
 count = 2
@@ -41,7 +43,7 @@ mass = 0.0
 [fold]
 pattern = "straight"
 [hub]
-motion = "free"
+motion = "{motion}"
 radius = 1.0
 mass = 10.0
 {inertia}
@@ -200,14 +202,20 @@ def test_tethers_on_a_free_hub_librate_with_the_hub():
     assert np.max(np.abs(h["hub_axis"][:, 2] - 1.0)) < 1e-12  # it stays in the plane
 
 
-def planar_tethers(motion, coiled):
+def planar_tethers(motion, coiled, friction=0.0):
     """Four 20 m tethers on a 1e9 kg hub at 2 rad/s (the hub cannot be pushed sideways):
-    straight under a constant torque of 500 N m, or held-coiled and free."""
+    straight under a constant torque of 500 N m, or held-coiled and free; ``friction``: the
+    cable-hub contact's Coulomb coefficient."""
+    return prepare(case_mod.loads(planar_text(motion, coiled, friction)))
+
+
+def planar_text(motion, coiled, friction=0.0):
+    """The case text of :func:`planar_tethers`."""
     if coiled:
         fold, control = "[fold]\npattern = 'coiled'\n[stowage]\ncoil = 'held'", "law = 'free'"
     else:
         fold, control = "[fold]\npattern = 'straight'", "law = 'constant_torque'\ntorque = 500.0"
-    return prepare(case_mod.loads(f"""
+    return f"""
 [tethers]
 count = 4
 length = 20.0
@@ -217,6 +225,7 @@ elements = 20
 motion = "{motion}"
 mass = 1e9
 inertia = 3969.0
+friction = {friction}
 [control]
 {control}
 [initial]
@@ -225,7 +234,7 @@ omega = 2.0
 end = 0.3
 [output]
 frame_dt = 0
-"""))
+"""
 
 
 def run_scene(scene, end=0.3):
@@ -242,29 +251,35 @@ def rel_diff(a, b, key, rows=None):
 def test_fixed_and_free_hubs_agree_on_planar_runs():
     """Planar, symmetric scenes: a free hub neither tilts nor moves, and agrees with the
     fixed axis to round-off. Straight tethers under a constant torque: 1e-11 relative over
-    the run (measured 8e-13). A held coil with contact: 1e-11 to t = 0.1 s (measured
-    1.5e-13); later, contact events amplify round-off (a threshold crossed a step earlier),
-    so over the whole run the difference is bounded by 10 times what a 1e-15 change of the
-    initial velocities does to the fixed-axis run itself (measured: 2x for the hub rate,
-    0.7x for the tips)."""
+    the run (measured 8e-13). A held coil with contact, frictionless and with Coulomb
+    friction 0.3 (which dissipates 36 times more in contact): 1e-11 to t = 0.1 s (measured
+    3.8e-13 / 3.3e-13 for the hub rate), the contact dissipation 1e-9 (2.6e-10 / 4.2e-11);
+    later, contact events amplify round-off (a threshold crossed a step earlier), so over
+    the whole run the difference is bounded by 10 times what a 1e-15 change of the initial
+    velocities does to the fixed-axis run itself (measured: up to 2x)."""
     a = run_scene(planar_tethers("fixed_axis", False))
     b = run_scene(planar_tethers("free", False))
     for key in ("hub_omega", "hub_angle", "kinetic_energy", "torque_work", "tip_position",
                 "angular_momentum"):
         assert rel_diff(a, b, key) < 1e-11, key
     assert np.max(np.abs(b["hub_position"])) < 1e-12
-    a = run_scene(planar_tethers("fixed_axis", True))
-    b = run_scene(planar_tethers("free", True))
-    for key in ("hub_omega", "tip_position", "kinetic_energy"):
-        assert rel_diff(a, b, key, rows=100) < 1e-11, key
-    nudged = planar_tethers("fixed_axis", True)
-    nudged.state.node_vel[:] *= 1 + 1e-15
-    c = run_scene(nudged)
-    assert rel_diff(a, c, "hub_omega") > 0  # the scene does amplify round-off
-    for key in ("hub_omega", "tip_position"):
-        assert rel_diff(a, b, key) < 10 * rel_diff(a, c, key), key
-    assert np.max(np.abs(b["hub_position"])) < 1e-9
-    assert np.max(np.abs(b["hub_axis"][:, 2] - 1.0)) < 1e-14
+    dissipated = []
+    for friction in (0.0, 0.3):
+        a = run_scene(planar_tethers("fixed_axis", True, friction))
+        b = run_scene(planar_tethers("free", True, friction))
+        for key in ("hub_omega", "tip_position", "kinetic_energy"):
+            assert rel_diff(a, b, key, rows=100) < 1e-11, (friction, key)
+        assert rel_diff(a, b, "contact_dissipation", rows=100) < 1e-9, friction
+        nudged = planar_tethers("fixed_axis", True, friction)
+        nudged.state.node_vel[:] *= 1 + 1e-15
+        c = run_scene(nudged)
+        assert rel_diff(a, c, "hub_omega") > 0  # the scene does amplify round-off
+        for key in ("hub_omega", "tip_position"):
+            assert rel_diff(a, b, key) < 10 * rel_diff(a, c, key), (friction, key)
+        assert np.max(np.abs(b["hub_position"])) < 1e-9
+        assert np.max(np.abs(b["hub_axis"][:, 2] - 1.0)) < 1e-14
+        dissipated.append(b["contact_dissipation"][-1])
+    assert dissipated[1] > 10 * dissipated[0]  # the friction acts
 
 
 def test_tidal_force_and_torque_are_those_of_the_points():
@@ -315,11 +330,14 @@ def test_the_gravity_gradient_precesses_a_spinning_hub_about_the_orbit_normal():
     assert np.max(np.abs(cone - 30.0)) < 0.1
 
 
-def test_the_energy_balance_counts_the_gravity_gradient_work():
-    """Two 50 m tethers with 10 kg tips on a free hub spinning at 0.02 rad/s, a quarter of a
-    400 km orbit (1386 s): the tidal field does 0.13 J of work against 13.9 J of kinetic
-    energy; KE + SE - W_torque - W_gravity + D stays constant to O(dt^2) (drift 7.3e-5 J at
-    cfl 0.8, 1.7e-5 J at 0.4: below 1e-3 of the work, ratio 4 per halving)."""
+@pytest.mark.parametrize("motion", ["free", "fixed_axis"])
+def test_the_energy_balance_counts_the_gravity_gradient_work(motion):
+    """Two 50 m tethers with 10 kg tips on a hub spinning at 0.02 rad/s, free or on a fixed
+    axis (which does no work: it holds the hub's tilt and place, not its turn), a quarter
+    of a 400 km orbit (1386 s): the tidal field does 0.13 J of work against 13.9 J of
+    kinetic energy; KE + SE - W_torque - W_gravity + D stays constant to O(dt^2) (drift
+    8.2e-5 J at cfl 0.8, 1.9e-5 J at 0.4 on either hub: below 1e-3 of the work, ratio 4.2
+    per halving)."""
     drift = []
     for cfl in (0.8, 0.4):
         scene = prepare(case_mod.loads(f"""
@@ -332,7 +350,7 @@ youngs_modulus = 1e7
 [fold]
 pattern = "straight"
 [hub]
-motion = "free"
+motion = "{motion}"
 [initial]
 omega = 0.02
 [environment]
@@ -353,6 +371,43 @@ frame_dt = 0
         assert work > 0.1
     assert drift[0] < 1e-3 * work
     assert 3.0 < drift[0] / drift[1] < 5.0
+
+
+def test_a_fixed_axis_holds_the_tidal_torque_of_its_hub():
+    """A hub alone (two massless 1 m tethers) on a fixed axis in an orbit whose normal is
+    tilted 0.5 rad from the spin axis: the axis exerts minus the hub's tidal torque,
+    -3 n^2 (J - I_t) e_z (e_y, -e_x, 0) with e(t) the local vertical (1e-9 relative: the
+    closed form of an axisymmetric body; measured 1e-14), and the hub's rate stays (its own
+    tidal torque has no part about its axis)."""
+    h = hub_alone(2.0, dt=0.01, end=200.0, every=500, inertia="inertia = 3.0\n"
+                  "inertia_transverse = 2.0", extra=f"[environment]\ngravity_gradient = true\n"
+                  f"orbit_radius = {R_ORBIT}\norbit_tilt = 0.5", motion="fixed_axis")
+    env = orbit(R_ORBIT, 0.5)
+    e = np.array([vertical(env, t) for t in h["time"]])
+    expect = -3.0 * env.n ** 2 * (3.0 - 2.0) * e[:, 2:3] * np.column_stack(
+        [e[:, 1], -e[:, 0], np.zeros(len(e))])
+    got = h["axis_torque"]
+    assert np.max(np.abs(expect)) > 1e-7
+    assert np.max(np.abs(got - expect)) < 1e-9 * np.max(np.abs(expect))
+    assert np.ptp(h["hub_omega"]) < 1e-12
+
+
+def test_fixed_and_heavy_free_hubs_agree_in_the_gravity_gradient():
+    """The planar tethers of test_fixed_and_free_hubs_agree_on_planar_runs in a 400 km
+    orbit in their plane, the hub on a fixed axis and free (1e9 kg): two independent codes
+    of the tidal field (the fixed axis's per node, the free body's as the body's force and
+    torque) agree on the hub rate, the tips and the field's work to 1e-11 relative
+    (measured 3e-13, 8e-16, 1.6e-12)."""
+    runs = {}
+    for motion in ("fixed_axis", "free"):
+        text = planar_text(motion, False) + ("[environment]\ngravity_gradient = true\n"
+                                            f"orbit_radius = {R_ORBIT}\n")
+        runs[motion] = run_scene(prepare(case_mod.loads(text.replace("end = 0.3",
+                                                                     "end = 0.1"))), 0.1)
+    a, b = runs["fixed_axis"], runs["free"]
+    assert np.ptp(a["gravity_gradient_work"]) > 0.0
+    for key in ("hub_omega", "tip_position", "kinetic_energy", "gravity_gradient_work"):
+        assert rel_diff(a, b, key) < 1e-11, key
 
 
 def web_case(sets):
@@ -485,22 +540,29 @@ def test_tip_mass_scale_and_delay_make_one_arm_different():
 
 def test_a_perturbed_web_on_a_free_hub_keeps_its_momenta_and_energy():
     """The paper's free deployment on a free hub with a 1 m tilt and a 0.01 rad/s hub tilt
-    rate, to 0.3 s: the web leaves the plane (max |z| from the hub plane grows past 1 m),
-    the hub's axis tilts; linear and angular momentum vectors are conserved to round-off
-    (1e-11 relative: every contact impulse acts on node and hub alike), the energy balance
-    within 0.1 % (measured 6.9e-4, as the fixed-axis run's contact transitions)."""
-    scene = prepare(web_case(["time.end=0.3", "hub.motion='free'",
-                              "perturbation.z_amplitude=1.0",
-                              "perturbation.hub_tilt_rate=0.01"]))
-    h = run_scene(scene, 0.3)
-    L = h["angular_momentum_vector"]
-    assert np.max(np.linalg.norm(L - L[0], axis=1)) < 1e-11 * np.linalg.norm(L[0])
-    P = h["linear_momentum"]
-    assert np.max(np.linalg.norm(P, axis=1)) < 1e-11 * np.linalg.norm(L[0]) / 50.0
-    assert h["out_of_plane_max"].max() > 1.0
-    assert np.degrees(np.arccos(h["hub_axis"][:, 2].min())) > 0.5
-    e = energy_balance(h)
-    assert np.max(np.abs(e - e[0])) < 1e-3 * e[0]
+    rate, to 0.3 s, frictionless and with Coulomb friction 0.3 on the hub: the web leaves
+    the plane (max |z| from the hub plane grows past 1 m), the hub's axis tilts; linear and
+    angular momentum vectors are conserved to round-off (1e-11 relative, measured 1.2e-14 /
+    1.0e-14: every contact impulse, normal and tangential, acts on node and hub alike), the
+    energy balance within 0.1 % (measured 6.5e-4 / 2.9e-4, as the fixed-axis run's contact
+    transitions) with the friction's loss booked (contact dissipation 26 kJ / 108 kJ)."""
+    lost = []
+    for friction in (0.0, 0.3):
+        scene = prepare(web_case(["time.end=0.3", "hub.motion='free'",
+                                  "perturbation.z_amplitude=1.0",
+                                  "perturbation.hub_tilt_rate=0.01",
+                                  f"hub.friction={friction}"]))
+        h = run_scene(scene, 0.3)
+        L = h["angular_momentum_vector"]
+        assert np.max(np.linalg.norm(L - L[0], axis=1)) < 1e-11 * np.linalg.norm(L[0])
+        P = h["linear_momentum"]
+        assert np.max(np.linalg.norm(P, axis=1)) < 1e-11 * np.linalg.norm(L[0]) / 50.0
+        assert h["out_of_plane_max"].max() > 1.0
+        assert np.degrees(np.arccos(h["hub_axis"][:, 2].min())) > 0.5
+        e = energy_balance(h)
+        assert np.max(np.abs(e - e[0])) < 1e-3 * e[0]
+        lost.append(h["contact_dissipation"][-1])
+    assert lost[1] > 2 * lost[0]
 
 
 def test_a_free_hub_run_continues_bit_identically_from_its_checkpoint(tmp_path):
@@ -635,3 +697,49 @@ def test_a_torque_about_the_body_axis_spins_a_nutating_hub_up_and_calms_it():
     angle = np.arccos(np.einsum("td,td->t", b, K) / np.linalg.norm(K, axis=1))
     end = W + M / I3 * h["time"][-1]
     assert angle[-5:].mean() == pytest.approx(math.atan(I1 * wt / (I3 * end)), rel=1e-2)
+
+
+def _moved(scene, tilt, shift):
+    """The scene's initial state turned by ``tilt`` [rad] about +x and moved by ``shift``
+    (3,) [m]: positions, velocities, and the free body's centre, momenta and attitude."""
+    c, s = math.cos(tilt), math.sin(tilt)
+    Q = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    st, rs = scene.state, scene.state.rigid
+    st.node_pos[:] = st.node_pos @ Q.T + shift
+    st.node_vel[:] = st.node_vel @ Q.T
+    rs.position[:] = Q @ rs.position + shift
+    rs.velocity[:] = Q @ rs.velocity
+    rs.momentum[:] = Q @ rs.momentum
+    w1, x1 = math.cos(tilt / 2), math.sin(tilt / 2)
+    w2, x2, y2, z2 = rs.quaternion
+    rs.quaternion[:] = [w1 * w2 - x1 * x2, w1 * x2 + x1 * w2, w1 * y2 - x1 * z2,
+                        w1 * z2 + x1 * y2]
+    return Q
+
+
+def test_a_moved_and_tilted_free_hub_releases_its_coil_as_the_upright_one():
+    """The held coil's release test looks outward from the hub's own axis (fe.coil.pulls
+    in the hub frame): the paper's coiled tethers on a free hub, and the same scene moved
+    by 2 m and tilted by 0.1 rad, release their levels at the same steps (15 levels per
+    arm in 0.1 s), and the tips follow the transformed paths to round-off of the
+    transformation: 1e-9 of the arm length (measured 2e-12 m at 0.1 s; the slack arms on
+    the free hub amplify round-off about tenfold per 10 ms after that, so the window stops
+    there). With the release test about the world's z axis the moved scene's fronts go at
+    other steps from the third row on, and its tips are 1e-3 m off at the fifth."""
+    def scene():
+        return prepare(case_mod.load(CASES / "paper_free_arms.toml",
+                                     ["hub.motion='free'", "time.end=0.1"]))
+
+    upright, moved = scene(), scene()
+    shift = np.array([2.0, -0.5, 1.0])
+    Q = _moved(moved, 0.1, shift)
+    a = simulate(upright.model, upright.control, upright.state, upright.dt,
+                 Schedule(0.1, 1e-3)).history
+    b = simulate(moved.model, moved.control, moved.state, moved.dt, Schedule(0.1, 1e-3)).history
+    fronts = a["payout_front"]
+    assert fronts[-1].max() < fronts[0].min() - 10.0  # the arms paid out many levels
+    np.testing.assert_array_equal(b["payout_front"], fronts)
+    back = (b["tip_position"] - shift) @ Q
+    assert np.max(np.abs(back - a["tip_position"])) < 1e-9 * 50.0
+    for key in ("hub_omega", "kinetic_energy", "strain_energy", "max_tension"):
+        assert rel_diff(a, b, key) < 1e-9, key

@@ -339,9 +339,6 @@ def _check_free_hub(src, t):
             raise InputError(src, key, f"{list(triple)} kg m^2 breaks the triangle inequality "
                              f"(each moment at most the sum of the other two): no rigid body "
                              "has these")
-    if hub["motion"] == "free" and hub["friction"] > 0:
-        raise InputError(src, "hub.friction", "contact friction is not modelled for a free "
-                         "hub (hub.motion = 'free'): set it to 0")
 
 
 def _check_perturbation(src, scene, t):
@@ -379,9 +376,6 @@ def _check_environment(src, t):
     if not radius > R_EARTH:
         raise InputError(src, f"environment.{orbit[0]}", f"the orbit radius {radius:g} m is "
                          f"inside the Earth (mean radius {R_EARTH:g} m)")
-    if t["hub"]["motion"] != "free":
-        raise InputError(src, "environment.gravity_gradient", "needs hub.motion = 'free' (the "
-                         "tidal field acts on the hub, which a fixed axis would hold)")
 
 
 def _check_sizes(src, scene, t):

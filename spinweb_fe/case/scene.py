@@ -95,7 +95,7 @@ def model_from_case(case, mesh: Mesh) -> Model:
     arm_mass = case.tethers.arm_mass if case.scene == "tethers" else None
     model = build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
                         hub_radius=hub.radius, hub_inertia=hub.inertia,
-                        hub_friction=hub.friction,
+                        hub_friction=hub.friction, hub_transverse=hub.inertia_transverse,
                         line_density=None if arm_mass is None else eq7_line_density(mesh,
                                                                                     arm_mass))
     _check_arm(case, mesh)

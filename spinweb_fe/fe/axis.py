@@ -23,6 +23,8 @@ from numba import njit, prange
 from spinweb_fe.fe.coil import gather_bundles, held_moment, scatter_bundles
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
+from spinweb_fe.fe.rigid import body_loads
+from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
 
 class Axis(NamedTuple):
@@ -104,6 +106,46 @@ def axis_kick(tied_idx, coil, cs, law, pos, force, holding, w_old, j_eff, t, dt)
         tau += held_moment(coil, cs, pos, force)
     torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
     return AxisKick(torque, w_old, w_new, j_eff)
+
+
+@njit(inline="always")
+def axis_field(env, t, nodes, tied_idx, coil, cs, bundles, mv, force, tidal, field, holding):
+    """The gravity gradient at x_n on a scene whose hub turns on a fixed axis: m g(x) on
+    every node (into ``tidal`` and added to ``force``; the nodes that move with the hub
+    turn it by the moment about +z, the axis holds the rest), ``field[0]`` the power of the
+    tidal forces on the free nodes [W] (a bundle's summed on its spine node), ``field[1]``
+    their moment about +z on the nodes that move with the hub [N m]."""
+    node_tidal(env, t, mv.pos, nodes.mass, force, tidal)
+    tau = moment_of(mv.pos, tidal, tied_idx)
+    if holding:
+        tau += held_moment(coil, cs, mv.pos, tidal)
+    gather_bundles(bundles, cs, tidal)
+    field[0] = tidal_power(tidal, mv.vel, mv.inv_mass)
+    field[1] = tau
+
+
+@njit(inline="always")
+def axis_field_work(field, tidal, mv, ak, dt):
+    """The gravity gradient's work over the step [J]: dt (P_n + P_{n+1/2}) / 2 on the free
+    nodes (P the tidal power with v_{n-1/2} and v_{n+1/2}) and its moment's work on the
+    hub, dt tau (omega_{n-1/2} + omega_{n+1/2}) / 2, as the control torque's."""
+    p1 = tidal_power(tidal, mv.vel, mv.inv_mass)
+    return 0.5 * dt * (field[0] + p1) + field[1] * dt * 0.5 * (ak.rate_old + ak.rate_new)
+
+
+@njit(cache=True)
+def axis_reaction(env, t, hub, coil, cs, pos, force, row, vs):
+    """The torque the fixed axis exerts on the hub about its centre, into the row's slots
+    ``vs.axis_torque``: minus the x and y parts of the moment of the forces on the nodes
+    that move with the hub and of the tidal torque on the hub itself (z: 0; the control
+    torque is recorded apart)."""
+    _, T = body_loads(hub, coil, cs, np.zeros(3), pos, force)
+    if env.n > 0.0:
+        T += axis_hub_tidal(env, t, hub)
+    a = vs.axis_torque
+    row[a] = -T[0]
+    row[a + 1] = -T[1]
+    row[a + 2] = 0.0
 
 
 @njit(inline="always", error_model="numpy")
@@ -348,6 +390,8 @@ def axis_start(model, law, state, force, dt):
     hub, coil = model.hub, model.coil
     pos = state.node_pos
     vel = state.node_vel
+    if model.env.n > 0.0:  # the gravity gradient's forces (fe.axis.axis_field)
+        node_tidal(model.env, 0.0, pos, model.nodes.mass, force, np.zeros_like(force))
     if model.bundles is not None:
         gather_bundles(model.bundles, state.coil, force)
     vel -= 0.5 * dt * force * state.node_inv_mass[:, None]

@@ -96,7 +96,7 @@ def body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt):
     Pi_{n+1/2} before contact. (The model's and state's parts, not the whole tuples: numba
     counts a reference for every array a call hands over.)"""
     R = rotation(rs.quaternion)
-    F, T = body_loads(hub, coil, cs, rs, pos, force)
+    F, T = body_loads(hub, coil, cs, rs.position, pos, force)
     Fg = np.zeros(3)
     Tg = np.zeros(3)
     if env.n > 0.0:
@@ -128,7 +128,7 @@ def body_nodes(nodes, hub, mv, force, env, t, rs, bk, dt, record, out):
     contacts, contact dissipation [J], gravity-gradient work on nodes and body [J])."""
     pos, vel, inv_mass, node_mass = mv.pos, mv.vel, mv.inv_mass, mv.mass
     contact = nodes.contact
-    r0 = hub.radius
+    r0, mu = hub.radius, hub.friction
     use_contact = r0 > 0.0
     tidal = env.n > 0.0
     e = vertical(env, t)
@@ -162,7 +162,7 @@ def body_nodes(nodes, hub, mv, force, env, t, rs, bk, dt, record, out):
                 qz = pos[i, 2] + dt * vel[i, 2] - c1[2]
                 h = qx * b1[0] + qy * b1[1] + qz * b1[2]
                 if qx * qx + qy * qy + qz * qz - h * h < r0 * r0:
-                    diss += contact_free(i, pos, vel, f, m, r0, rs, bk, dt)
+                    diss += contact_free(i, pos, vel, f, m, r0, mu, rs, bk, dt)
             if tidal:  # dt m g . (v_{n-1/2} + v_{n+1/2}) / 2
                 work += m * (gx * (vx + vel[i, 0]) + gy * (vy + vel[i, 1])
                              + gz * (vz + vel[i, 2]))
@@ -227,11 +227,17 @@ def body_drift(rs, bk, dt, theta):
 
 @njit(cache=True)
 def body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken):
-    """Releases of held levels at time t (fe.coil.release_fronts) and, when some went, the
-    body without them (fe.rigid.detach: every point keeps its velocity)."""
+    """Releases of held levels at time t (fe.coil.release_fronts, outward from the hub's
+    axis where it is now) and, when some went, the body without them (fe.rigid.detach:
+    every point keeps its velocity)."""
     front = cs.front
     before = front.sum()
-    release_fronts(coil, cs, elems, nodes, mv.pos, mv.mass, mv.inv_mass, 0.0, t, broken)
+    R = rotation(rs.quaternion)
+    frame = np.empty((2, 3))
+    frame[0] = hub_centre(rs, R)
+    frame[1] = R[:, 2]
+    release_fronts(coil, cs, elems, nodes, mv.pos, mv.mass, mv.inv_mass, 0.0, t, broken,
+                   frame)
     if front.sum() != before:
         detach(body, nodes, hub, coil, cs, rs)
 
@@ -254,7 +260,7 @@ def body_start(model, law, state, force, dt):
     if coil.level_nodes.shape[0] > 0:
         gather_bundles(model.bundles, state.coil, force)
     R = rotation(rs.quaternion)
-    F, T = body_loads(model.hub, coil, state.coil, rs, pos, force)
+    F, T = body_loads(model.hub, coil, state.coil, rs.position, pos, force)
     e = vertical(env, 0.0)
     n2 = env.n * env.n
     for i in range(pos.shape[0]):

@@ -373,10 +373,12 @@ def free_length(coil, cs, k):
 
 
 @njit(cache=True)
-def pulls(coil, elems, pos, lev, broken=None):
+def pulls(coil, elems, pos, lev, broken=None, frame=None):
     """True if a free element of level ``lev`` is taut and points outward from the hub at
     its node of this level: the free part pulls the level off the hub (a ``broken`` element,
-    fe.rupture, pulls nothing)."""
+    fe.rupture, pulls nothing). Outward is along the node's radial from the hub axis:
+    ``frame`` None for the fixed axis (+z through the origin), else (2, 3) the hub centre
+    and unit axis (a free hub, which moves and tilts)."""
     for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
         e, a, b = coil.test_elem[q], coil.test_from[q], coil.test_to[q]
         if broken is not None and broken.shape[0] > 0 and broken[e]:
@@ -385,17 +387,26 @@ def pulls(coil, elems, pos, lev, broken=None):
         dy = pos[b, 1] - pos[a, 1]
         dz = pos[b, 2] - pos[a, 2]
         taut = (dx * dx + dy * dy + dz * dz) * elems.inv_rest[e] ** 2 > 1.0
-        if taut and dx * pos[a, 0] + dy * pos[a, 1] > 0.0:
+        if frame is None:
+            out = dx * pos[a, 0] + dy * pos[a, 1]
+        else:  # d . r, r the node's radial: x - c less its part along the axis
+            c, ax = frame[0], frame[1]
+            rx, ry, rz = pos[a, 0] - c[0], pos[a, 1] - c[1], pos[a, 2] - c[2]
+            h = rx * ax[0] + ry * ax[1] + rz * ax[2]
+            out = dx * (rx - h * ax[0]) + dy * (ry - h * ax[1]) + dz * (rz - h * ax[2])
+        if taut and out > 0.0:
             return True
     return False
 
 
 @njit(cache=True)
-def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, broken=None):
+def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, broken=None,
+                   frame=None):
     """After a step: release the front level of every arm whose free part pulls it off the
     hub and whose paid-out length would then not exceed the payout law's at time t (broken
-    elements: see :func:`pulls`); an arm held whole until ``arm_hold`` releases its tip
-    level then. Returns the hub's effective inertia without the released nodes [kg m^2]."""
+    elements and the hub's ``frame``: see :func:`pulls`); an arm held whole until
+    ``arm_hold`` releases its tip level then. Returns the hub's effective inertia without the
+    released nodes [kg m^2]."""
     allowed = payout_allowed(coil, t)
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
@@ -407,7 +418,7 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
         after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end
                                    else coil.arm_base[k])
         tip = cs.front[k] == 0  # a delayed arm's tip level goes when the wait is over
-        if not tip and (after > allowed or not pulls(coil, elems, pos, lev, broken)):
+        if not tip and (after > allowed or not pulls(coil, elems, pos, lev, broken, frame)):
             continue
         for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
             i = coil.level_nodes[p]

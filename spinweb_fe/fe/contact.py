@@ -73,12 +73,43 @@ def contact_node(i, pos, vel, force, m, r0, mu, j_eff, omega, dw_force, dt):
 
 
 @njit(cache=True)
-def contact_free(i, pos, vel, f, m, r0, rs, bk, dt):
+def slip(i, vel, m, M, p_max, rs, R, V, Pi, rho, e, dv, dV, dw):
+    """Coulomb friction of node i on the free hub after its normal impulse: the slip u_t
+    (the node's velocity relative to the hub surface, less its part along the normal e) is
+    stopped by the impulse |u_t| / (1/m + 1/M + k . I_s^{-1} k), k = rho x t, t = u_t /
+    |u_t|, or slowed by ``p_max``; node and body (V, Pi) take it, and the velocity changes
+    are added to ``dv``, ``dV``, ``dw``."""
+    w = inv_inertia(rs, R, Pi)
+    vs = V + cross(w, rho)
+    u = np.array([vel[i, 0] - vs[0], vel[i, 1] - vs[1], vel[i, 2] - vs[2]])
+    un = u[0] * e[0] + u[1] * e[1] + u[2] * e[2]
+    ut = u - un * e
+    size = np.sqrt(ut[0] ** 2 + ut[1] ** 2 + ut[2] ** 2)
+    if size == 0.0:
+        return
+    t = ut / size
+    k = cross(rho, t)
+    ik = inv_inertia(rs, R, k)
+    pt = min(size / (1.0 / m + 1.0 / M + k[0] * ik[0] + k[1] * ik[1] + k[2] * ik[2]), p_max)
+    for d in range(3):  # the node takes -pt t, the body +pt t at rho
+        vel[i, d] -= pt / m * t[d]
+        V[d] += pt / M * t[d]
+        Pi[d] += pt * k[d]
+        dv[d] -= pt / m * t[d]
+        dV[d] += pt / M * t[d]
+        dw[d] += pt * ik[d]
+
+
+@njit(cache=True)
+def contact_free(i, pos, vel, f, m, r0, mu, rs, bk, dt):
     """Kinematic contact of free node i with the free hub of the BodyKick ``bk`` (its
     V_{n+1/2}, Pi_{n+1/2} changed in place): the normal impulse along the node's radial in
-    the hub frame, shared with the body through their effective mass. Returns the energy it
-    removes [J] from node and body, less this step's force work on the removed velocities
-    (``f`` the node's force, ``bk.F``, ``bk.T`` the body's)."""
+    the hub frame, shared with the body through their effective mass, then (``mu`` > 0)
+    Coulomb friction against the slip over the hub surface: the tangential impulse that
+    stops the slip, through the effective mass along it, at most mu times the normal one;
+    the body takes every impulse's reaction at the node. Returns the energy they remove
+    [J] from node and body, less this step's force work on the removed velocities (``f``
+    the node's force, ``bk.F``, ``bk.T`` the body's)."""
     hull, R, V, Pi = bk.hull, bk.R, bk.V, bk.Pi
     c0, b0, c1, b1 = hull[0], hull[1], hull[2], hull[3]
     dx = pos[i, 0] - c0[0]
@@ -117,6 +148,10 @@ def contact_free(i, pos, vel, f, m, r0, rs, bk, dt):
     after = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) \
         + body_energy(rs, R, V, Pi)
     dw = -p * ik
+    if mu > 0.0:
+        slip(i, vel, m, M, mu * p, rs, R, V, Pi, rho, e, dv, dV, dw)
+        after = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) \
+            + body_energy(rs, R, V, Pi)
     Fb, Tb = bk.F, bk.T
     work = (f[0] * dv[0] + f[1] * dv[1] + f[2] * dv[2] + Fb[0] * dV[0] + Fb[1] * dV[1]
             + Fb[2] * dV[2] + Tb[0] * dw[0] + Tb[1] * dw[1] + Tb[2] * dw[2])

@@ -73,6 +73,8 @@ class Work(NamedTuple):
         Element tensions, written on record steps and by damped elements.
     inside : (n,) bool
         The node update's mark of the nodes heading inside the hub this step.
+    tidal : (n, 3) float64 [N]
+        The gravity gradient's force on each node (fe.axis.axis_field; (0, 3) without it).
     ef : (3, m + 1) float64 [N]
         Element force vectors f_e (column m stays zero: the padding slot).
     buf : (chunks, 8, BLOCK) float64
@@ -89,6 +91,7 @@ class Work(NamedTuple):
     force: np.ndarray
     tension: np.ndarray
     inside: np.ndarray
+    tidal: np.ndarray
     ef: np.ndarray
     buf: np.ndarray
     eout: np.ndarray
@@ -119,10 +122,12 @@ def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
                  node_elems, extra_nodes, extra_ptr, extra_elems)
 
 
-def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK) -> Work:
+def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK,
+              tidal: bool = False) -> Work:
     """A :class:`Work` for a model, with gather buffers for ``chunks`` threads and blocks of
-    ``block`` elements (and nodes)."""
+    ``block`` elements (and nodes), and (``tidal``) the gravity gradient's node forces."""
     return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros(n_nodes, np.bool_),
+                np.zeros((n_nodes if tidal else 0, 3)),
                 np.zeros((3, n_elems + 1)),
                 np.zeros((chunks, 8, block)),
                 np.zeros((max(1, -(-n_elems // block)), 8)),

@@ -20,12 +20,15 @@ from typing import Callable, NamedTuple
 
 
 class Col(NamedTuple):
-    """A recorded quantity: its name (the ``/history`` dataset), width, SI unit, meaning."""
+    """A recorded quantity: its name (the ``/history`` dataset), width, SI unit, meaning;
+    ``present``: None for a column every run of its table has, else whether a Model has it
+    (written to the history only then)."""
 
     name: str
     width: int
     units: str
     doc: str
+    present: Callable | None = None
 
 
 class Term(NamedTuple):
@@ -93,6 +96,10 @@ VECTOR = (
                                     "hub's) of their distance from the hub plane"),
     Col("out_of_plane_max", 1, "m", "out of the plane: the largest distance of a web node "
                                     "from the hub plane"),
+    Col("axis_torque", 3, "N m", "out of the plane, hub on a fixed axis: the torque the axis "
+                                 "exerts on the hub about its centre (what holds it against "
+                                 "the out-of-plane pull of the cables and the tidal torque)",
+        present=lambda model: model.body is None),
 )
 
 #: per arm of a held coil (the step records them; record/arms.py reads them by name)
@@ -152,13 +159,14 @@ SLOTS = Slots(RowSlots(**_offsets(ROW), energy=width(ROW)),
               ArmSlots(**_offsets(ARM)), StrengthSlots(**_offsets(STRENGTH)))
 
 
-def named(table, cols, nrec=None) -> dict:
-    """{name: column} of the first ``nrec`` rows of ``table`` (..., width(cols)) laid out
-    as ``cols``: (T, ...) arrays for width 1, (T, ..., w) otherwise (copies)."""
-    rows = table if nrec is None else table[:nrec]
+def named(table, cols, model=None) -> dict:
+    """{name: column} of ``table`` (..., width(cols)) laid out as ``cols``: (T, ...) arrays
+    for width 1, (T, ..., w) otherwise (copies); with a ``model``, only the columns it has
+    (Col.present)."""
     out, j = {}, 0
     for c in cols:
-        out[c.name] = (rows[..., j] if c.width == 1 else rows[..., j:j + c.width]).copy()
+        if model is None or c.present is None or c.present(model):
+            out[c.name] = (table[..., j] if c.width == 1 else table[..., j:j + c.width]).copy()
         j += c.width
     return out
 

@@ -81,6 +81,9 @@ class Hub(NamedTuple):
         J_hub about the axis.
     j_eff : float [kg m^2]
         J_hub plus the tied nodes' m r^2.
+    transverse : float [kg m^2]
+        The hub's own moment about an axis in its plane (axisymmetric: the tidal torque a
+        fixed axis reacts).
     tied_idx : (k,) int64
         Nodes tied to the hub.
     tied_ref : (k, 3) float64 [m]
@@ -91,6 +94,7 @@ class Hub(NamedTuple):
     friction: float
     inertia: float
     j_eff: float
+    transverse: float
     tied_idx: np.ndarray
     tied_ref: np.ndarray
 
@@ -182,18 +186,21 @@ class Model:
         return len(self.elements.nodes)
 
 
-def make_hub(radius, friction, inertia, node_mass, tied_idx, tied_ref) -> Hub:
-    """A Hub whose effective inertia counts the tied nodes (J_hub + sum m (x^2 + y^2))."""
+def make_hub(radius, friction, inertia, node_mass, tied_idx, tied_ref, transverse=None) -> Hub:
+    """A Hub whose effective inertia counts the tied nodes (J_hub + sum m (x^2 + y^2));
+    ``transverse`` [kg m^2] defaults to J_hub / 2 (a thin ring)."""
     tied_idx = np.asarray(tied_idx, dtype=np.int64)
     tied_ref = np.ascontiguousarray(tied_ref, dtype=np.float64).reshape(-1, 3)
     j_eff = inertia + float(np.sum(node_mass[tied_idx]
                                    * (tied_ref[:, 0] ** 2 + tied_ref[:, 1] ** 2)))
-    return Hub(float(radius), float(friction), float(inertia), float(j_eff), tied_idx, tied_ref)
+    transverse = 0.5 * inertia if transverse is None else transverse
+    return Hub(float(radius), float(friction), float(inertia), float(j_eff), float(transverse),
+               tied_idx, tied_ref)
 
 
 def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
                 hub_radius=None, hub_inertia=1.0, hub_friction=0.0, contact=True,
-                line_density=None) -> Model:
+                line_density=None, hub_transverse=None) -> Model:
     """Assemble a Model from a Mesh and material / hub data (SI units).
 
     Parameters
@@ -206,6 +213,8 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
         r0 (default the mesh's).
     hub_inertia : float [kg m^2]
     hub_friction : float
+    hub_transverse : float or None [kg m^2]
+        The hub's moment about an axis in its plane (default hub_inertia / 2).
     contact : bool
         Check cable-hub contact for the free nodes (False, or hub_radius 0, skips it).
     line_density : (m,) float64 or None [kg/m]
@@ -220,7 +229,8 @@ def build_model(mesh: Mesh, youngs_modulus, density, area, damping_ratio=0.0,
     tied = np.asarray(mesh.node_sets["hub_tied"], dtype=np.int64)
     inv = np.where(node_mass > 0, 1.0 / np.where(node_mass > 0, node_mass, 1.0), 0.0)
     inv[tied] = 0.0
-    hub = make_hub(r0, hub_friction, hub_inertia, node_mass, tied, mesh.node_pos[tied])
+    hub = make_hub(r0, hub_friction, hub_inertia, node_mass, tied, mesh.node_pos[tied],
+                   hub_transverse)
     zeta = damping_ratio
     rest = np.ascontiguousarray(mesh.elem_rest_len)
     if uniform:  # one cable: the closed forms, as before per-element data existed

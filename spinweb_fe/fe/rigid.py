@@ -291,12 +291,11 @@ def _place(i, refs, row, R, X, V, c, w, pos, vel):
 
 
 @njit(cache=True)
-def body_loads(hub, coil, cs, rs, pos, force):
+def body_loads(hub, coil, cs, X, pos, force):
     """(F, T): the sum of the forces on the tied and held nodes and their moment about the
-    centre of mass X (force: one (n, 3) buffer)."""
+    point X (3,) [m] (the body's centre of mass; force: one (n, 3) buffer)."""
     F = np.zeros(3)
     T = np.zeros(3)
-    X = rs.position
     tied_idx = hub.tied_idx  # taken out before the loops (see place_body)
     arm_ptr, level_ptr, front, level_nodes = coil.arm_ptr, coil.level_ptr, cs.front, \
         coil.level_nodes

@@ -32,8 +32,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.axis import (NodeMotion, axis_kick, axis_nodes, axis_row, axis_start,
-                                axis_vector_row, place_rigid)
+from spinweb_fe.fe.axis import (NodeMotion, axis_field, axis_field_work, axis_kick, axis_nodes,
+                                axis_reaction, axis_row, axis_start, axis_vector_row,
+                                place_rigid)
 from spinweb_fe.fe.body import (body_drift, body_kick, body_nodes, body_release, body_row,
                                 body_start, body_state)
 from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
@@ -100,6 +101,27 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
         se, tmax, pdamp = element_forces(elems, links, pos, vel, work, record, threads)
     node_forces(links, work, threads)
     return se, tmax, pdamp
+
+
+@njit(inline="always")
+def field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field, holding):
+    """The gravity gradient's loads at x_n on a scene with a fixed axis (fe.axis.axis_field;
+    a free hub takes the field in its own phases)."""
+    if axis is not None:
+        if env.n > 0.0:
+            axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
+                       holding)
+
+
+@njit(inline="always")
+def field_work(axis, env, field, tidal, mv, kick, dt):
+    """The gravity gradient's work over the step on a scene with a fixed axis [J] (a free
+    hub's is counted in its node pass)."""
+    w = 0.0
+    if axis is not None:
+        if env.n > 0.0:
+            w = axis_field_work(field, tidal, mv, kick, dt)
+    return w
 
 
 @njit(inline="always")
@@ -206,13 +228,14 @@ def record_arms(coil, cs, table, t, sa):
 
 
 @njit(inline="always")
-def hub_plane(axis, body, kick):
-    """(centre, unit normal) of the hub's plane at x_n."""
+def hub_record(axis, body, kick, env, t, hub, coil, cs, nodes, pos, force, vrow, vs):
+    """The vector row's distances from the hub plane at x_n and, on a fixed axis, the torque
+    the axis exerts on the hub (fe.axis.axis_reaction)."""
     if axis is not None:
-        plane = (np.zeros(3), np.array([0.0, 0.0, 1.0]))
+        plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]), vrow, vs)
+        axis_reaction(env, t, hub, coil, cs, pos, force, vrow, vs)
     if body is not None:
-        plane = (kick.hull[0], kick.hull[1])
-    return plane
+        plane_stats(pos, nodes.inv_mass, kick.hull[0], kick.hull[1], vrow, vs)
 
 
 @njit(inline="always")
@@ -266,7 +289,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     env, strength = model.env, model.strength
     has_strength = checks_strength(strength)
     pos, vel, force = state.node_pos, state.node_vel, work.force
-    totals = state.totals
+    totals, tidal = state.totals, work.tidal
+    field = np.zeros(2)
     sums = np.zeros(5)
     incr = np.zeros(totals.shape[0])
     vprobe = np.zeros((rec.probes.shape[0], 3))
@@ -292,6 +316,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads)
+        field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
+                    holding)
         if has_coil:
             gather_bundles(bundles, cs, force)
         # loads on the hub and its kick
@@ -305,8 +331,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
             if vec is not None:
                 vec[nrec] = 0.0
                 node_momenta(pos, vel, mass, inv_mass, vec[nrec], 0.5, sl.vec)
-                centre, normal = hub_plane(axis, body, kick)
-                plane_stats(pos, nodes.inv_mass, centre, normal, vec[nrec], sl.vec)
+                hub_record(axis, body, kick, env, t, hub, coil, cs, nodes, pos, force,
+                           vec[nrec], sl.vec)
         # kick, constraints and contact, drift of the free nodes
         kick, dcontact, wgrav = move_nodes(axis, body, nodes, hub, mv, work, env, rs, kick, t,
                                            dt, sums, record, threads)
@@ -315,7 +341,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         incr[term.torque_work] = kick.torque * dt * 0.5 * (kick.rate_old + kick.rate_new)
         incr[term.damping_dissipation] = pdamp * dt
         incr[term.contact_dissipation] = dcontact
-        incr[term.gravity_gradient_work] = wgrav
+        incr[term.gravity_gradient_work] = wgrav + field_work(axis, env, field, tidal, mv, kick,
+                                                              dt)
         theta = hub_angle[0]
         if record:  # the row of step n: mean velocities, energies, momenta
             if vec is not None:

@@ -84,3 +84,41 @@ def body_tidal(env, t, mass, X, inertia_s):
     T = 3.0 * n2 * np.array([e[1] * Ie[2] - e[2] * Ie[1], e[2] * Ie[0] - e[0] * Ie[2],
                              e[0] * Ie[1] - e[1] * Ie[0]])
     return F, T
+
+
+@njit(cache=True)
+def node_tidal(env, t, pos, mass, force, tidal):
+    """tidal[i] = m_i g(x_i, t) [N] of every node (``mass``: the model's masses, the nodes
+    that move with a fixed axis included), added to ``force`` (n, 3)."""
+    e = vertical(env, t)
+    n2 = env.n * env.n
+    for i in range(pos.shape[0]):
+        m = mass[i]
+        gx, gy, gz = tidal_accel(n2, e, pos[i, 0], pos[i, 1], pos[i, 2])
+        tidal[i, 0] = m * gx
+        tidal[i, 1] = m * gy
+        tidal[i, 2] = m * gz
+        force[i, 0] += tidal[i, 0]
+        force[i, 1] += tidal[i, 1]
+        force[i, 2] += tidal[i, 2]
+
+
+@njit(cache=True)
+def tidal_power(tidal, vel, inv_mass):
+    """sum tidal_i . v_i [W] over the nodes with active mass (1/m > 0)."""
+    p = 0.0
+    for i in range(tidal.shape[0]):
+        if inv_mass[i] > 0.0:
+            p += tidal[i, 0] * vel[i, 0] + tidal[i, 1] * vel[i, 1] + tidal[i, 2] * vel[i, 2]
+    return p
+
+
+@njit(cache=True)
+def axis_hub_tidal(env, t, hub):
+    """3 n^2 e x (I e) [N m]: the tidal torque on an axisymmetric hub on the fixed axis +z
+    (I = diag(I_t, I_t, J) about its centre, the origin)."""
+    e = vertical(env, t)
+    n2 = env.n * env.n
+    ie = np.array([hub.transverse * e[0], hub.transverse * e[1], hub.inertia * e[2]])
+    return 3.0 * n2 * np.array([e[1] * ie[2] - e[2] * ie[1], e[2] * ie[0] - e[0] * ie[2],
+                                e[0] * ie[1] - e[1] * ie[0]])

@@ -70,10 +70,11 @@ def start(model: Model, control: Control, state: State, dt: float, work=None):
 
 def records_vectors(model: Model, state: State) -> bool:
     """Whether a run records the vector columns (momentum vectors, the hub's pose, the
-    distances from the hub plane): a free hub, or a scene not exactly in the plane (some
-    node with z or v_z not 0). A fixed-axis scene in the plane stays there exactly (its
-    forces have no z part), and its step loop is the one without them."""
-    return bool(model.free_hub or np.any(state.node_pos[:, 2] != 0.0)
+    distances from the hub plane): a free hub, the gravity gradient, or a scene not exactly
+    in the plane (some node with z or v_z not 0). A fixed-axis scene in the plane without
+    the tidal field stays there exactly (its forces have no z part), and its step loop is
+    the one without them."""
+    return bool(model.free_hub or model.env.n > 0.0 or np.any(state.node_pos[:, 2] != 0.0)
                 or np.any(state.node_vel[:, 2] != 0.0))
 
 
@@ -128,7 +129,8 @@ class _Chunks:
 
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, *model.hub_kind, control.kernel)
-        self.work = make_work(model.n_nodes, model.n_elems, threads)
+        self.work = make_work(model.n_nodes, model.n_elems, threads,
+                              tidal=model.env.n > 0.0 and not model.free_hub)
         # None on one thread, so that numba compiles no thread kernel
         self.threads = None if threads == 1 else threads
         rows = ROWS_PER_CHUNK + 1
@@ -156,7 +158,7 @@ class _Chunks:
         pos, vel = self.rec.probe_pos[:nrec], self.rec.probe_vel[:nrec]
         vectors = None
         if self.vec is not None:
-            vectors = named(self.vec[:nrec], VECTOR)
+            vectors = named(self.vec[:nrec], VECTOR, self.model)
             if self.model.free_hub:  # the arms are measured in the hub's plane
                 pos, vel = hub_plane(pos, vel, vectors["hub_position"],
                                      vectors["hub_quaternion"])
