@@ -22,7 +22,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from spinweb_fe import case as case_mod  # noqa: E402
 from spinweb_fe.linear.modes import compute_modes  # noqa: E402
 from spinweb_fe.linear.steady import Structure, solve_steady  # noqa: E402
-from spinweb_fe.linear.study import analyse, sweep  # noqa: E402
+from spinweb_fe.run.modal import analyse, sweep  # noqa: E402
 from spinweb_fe.post.modes_plot import plot_sweep  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

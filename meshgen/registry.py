@@ -51,6 +51,9 @@ WEB_FOLDS = {"star": "star fold into n arms, coiled on the hub",
              "flat": "the deployed web, flat"}
 #: tethers straight and radial, or wound on the hub rim
 TETHER_FOLDS = {"straight": "straight and radial", "coiled": "wound on the hub rim"}
+#: the folds that wind the arms on the hub (a coiled scene: its stowage, the analytical
+#: model's coiled start)
+COILED_FOLDS = ("star", "coiled")
 #: coil direction relative to a positive spin: +1 trailing (clockwise), -1 leading
 WRAP_SIGN = {"trailing": 1, "leading": -1}
 #: hub attachment of the star-folded web

@@ -13,12 +13,25 @@ from spinweb_fe.analytic import solve as analytic
 from spinweb_fe.analytic.solve import drifts, integrate
 from spinweb_fe.fe.control import free, make_control
 from spinweb_fe.analytic.models import (HALF_PI, ArmParams, accelerations, invariants,
-                                        rigid_inertia, root_tension, straight_tension, tip_rate)
+                                        root_tension, tip_rate)
 from spinweb_fe.record.history import HISTORY_UNITS
 
 W0 = 8 * math.pi
 PAPER = ArmParams(n=4, H=50.0, r0=6.3, J_hub=3969.0, m_tip=10.0, m_lin=126.7 / 4)
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def straight_tension(p: ArmParams, omega: float) -> float:
+    """Closed-form root tension [N] of a straight radial arm in steady spin at omega:
+    N = omega^2 [m_tip (r0 + H) + m_lin (r0 + H/3) + m_uni (r0 + H/2)]."""
+    r0, H = p.r0, p.H
+    return omega ** 2 * (p.m_tip * (r0 + H) + p.m_lin * (r0 + H / 3.0) + p.m_uni * (r0 + H / 2.0))
+
+
+def rigid_inertia(p: ArmParams, phi: float = 0.0) -> float:
+    """Inertia [kg m^2] of hub + fully uncoiled arms frozen at angle phi (rigid rotation)."""
+    m_f, S, I = p.moments(p.H)
+    return p.J0 + p.n * (I + 2.0 * p.r0 * S * math.cos(phi))
 
 
 def case_text(scene="web", law="free", end=0.5, spin="all", fold=""):

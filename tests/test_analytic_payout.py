@@ -12,7 +12,6 @@
 """
 
 import dataclasses
-import math
 from pathlib import Path
 
 import numpy as np

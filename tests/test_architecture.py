@@ -12,9 +12,9 @@ PACKAGES = ("meshgen", "spinweb_fe")
 #: stages from the bottom up: a module may import only its own stage and the ones below
 LAYERS = ("meshgen", "spinweb_fe.errors", "spinweb_fe.fe", "spinweb_fe.record", "spinweb_fe.io",
           "spinweb_fe.linear", "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic",
-          "spinweb_fe.linear.study", "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli",
-          "spinweb_fe.__main__")
+          "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli", "spinweb_fe.__main__")
 MAX_LINES = 500
+MAX_KERNEL_PARAMS = 14
 
 
 def module_name(path: Path) -> str:
@@ -147,6 +147,33 @@ def test_library_modules_stay_small():
     big = {name: n for name, p in library_modules().items()
            if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert not big, f"modules over {MAX_LINES} lines: {big}"
+
+
+def _jitted(node) -> bool:
+    """A function decorated with numba's njit / jit (called or not)."""
+    for d in node.decorator_list:
+        target = d.func if isinstance(d, ast.Call) else d
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in ("njit", "jit"):
+            return True
+    return False
+
+
+def kernel_params(tree) -> dict:
+    """{function name: parameter count} of the jitted functions of a module."""
+    return {n.name: len(n.args.args) + len(n.args.kwonlyargs) for n in ast.walk(tree)
+            if isinstance(n, ast.FunctionDef) and _jitted(n)}
+
+
+def test_kernels_take_few_parameters():
+    """No jitted function takes more than 14 parameters: arrays are grouped by entity
+    (docs/architecture.md)."""
+    big = {f"{name}.{fn}": n for name, p in library_modules().items()
+           for fn, n in kernel_params(ast.parse(p.read_text())).items() if n > MAX_KERNEL_PARAMS}
+    assert not big, big
+    counted = kernel_params(ast.parse("@njit(cache=True)\ndef f(a, b=None):\n    pass\n"
+                                      "@numba.njit\ndef g(*, c):\n    pass\n"))
+    assert counted == {"f": 2, "g": 1}  # the reader sees decorated kernels
 
 
 def test_the_rules_see_what_they_guard(graph, tmp_path):

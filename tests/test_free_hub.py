@@ -16,7 +16,6 @@ import pytest
 
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.fe.rigid import rotation
 from spinweb_fe.fe.tidal import MU_EARTH, body_tidal, orbit, tidal_accel, vertical
 from spinweb_fe.record.energy import energy_balance
 from spinweb_fe.record.history import quaternion_matrix
@@ -472,7 +471,7 @@ def test_mode_shape_is_the_lowest_out_of_plane_mode_and_rings_at_its_frequency()
     that mode's frequency within 1 % (from the tip's zero crossings; the amplitude 1 cm is
     linear). From the unstretched state the axial ringing would modulate the tension by
     +-100 % and shift the frequency by 20 %."""
-    from spinweb_fe.linear.study import analyse
+    from spinweb_fe.run.modal import analyse
 
     text = """
 [tethers]

@@ -16,10 +16,10 @@ from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import deployed, prepare
 from spinweb_fe.cli import main
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.linear.modes import InPlane, compute_modes, rigid_rotation
+from spinweb_fe.linear.modes import InPlane, compute_modes
 from spinweb_fe.linear.steady import (Structure, check_mechanism, hub_forces,
                                       solve_steady)
-from spinweb_fe.linear.study import analyse, sweep
+from spinweb_fe.run.modal import analyse, sweep
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.loop import Schedule, simulate
 
@@ -170,18 +170,28 @@ def test_finite_strain_single_cable():
     assert st.max_strain == pytest.approx(0.1, rel=1e-2) and st.residual < 1e-10
 
 
-def test_free_hub_rigid_rotation_is_a_zero_mode():
-    """With the hub free, turning hub and web together costs nothing: K q = 0 for the
+def rigid_rotation(mats, st, hub):
+    """(d,) reduced vector of the rigid rotation of everything, every node moving by J p
+    (with the hub coasting, a null vector of K)."""
+    xy = st.position[:, :2]
+    q = mats.T.T @ np.column_stack([-xy[:, 1], xy[:, 0]]).ravel()
+    if hub == "coasting":
+        q[-1] = 1.0
+    return q
+
+
+def test_coasting_hub_rigid_rotation_is_a_zero_mode():
+    """With the hub coasting, turning hub and web together costs nothing: K q = 0 for the
     rigid rotation (the prestress term of the tied nodes makes it exact), and G is skew."""
     case = case_mod.loads(WEB_CASE.format(E=E, omega=25.0))
     _, s = deployed(case)
     st = solve_steady(s, 25.0)
-    mats = InPlane(s, st, "free")
-    q = rigid_rotation(mats, st, "free")
+    mats = InPlane(s, st, "coasting")
+    q = rigid_rotation(mats, st, "coasting")
     assert np.abs(mats.K @ q).max() < 1e-9 * abs(mats.K).max() * np.abs(q).max()
     assert abs(mats.G + mats.G.T).max() == 0 and abs(mats.K - mats.K.T).max() < 1e-9 * abs(
         mats.K).max()
-    md = compute_modes(s, st, 3, "free")
+    md = compute_modes(s, st, 3, "coasting")
     assert md.frequency[0] < 1e-4 * 25.0 and md.kind[0] == "in_plane"
 
 
@@ -252,7 +262,7 @@ def test_explicit_solver_rings_at_the_computed_frequencies():
     (8e-5 off); bounds 1.5x these (README, docs/modes.md)."""
     omega = 2 * math.pi
     case = tether_case(omega, 1, elements=20, tip=10.0)
-    res = analyse(case, omega, 4, "free")
+    res = analyse(case, omega, 4, "coasting")
     assert res.steady.max_strain > 0.01
     for kind in ("out_of_plane", "in_plane"):
         k = next(i for i, (kd, f) in enumerate(zip(res.modes.kind, res.modes.frequency))
@@ -354,7 +364,10 @@ def test_cli_sweep_writes_table_csv_and_plot(tmp_path, capsys):
     assert len(lines) == 1 + 3 * 3
     assert (out / "sweep.png").stat().st_size > 1000
     assert main(["modes", case_path, "-o", str(out), "--count", "2",
+                 "--sweep", "tip_mass=0:2:2", "--hub", "coasting"]) == 0
+    assert main(["modes", case_path, "-o", str(out), "--count", "2",  # the old name warns
                  "--sweep", "tip_mass=0:2:2", "--hub", "free"]) == 0
+    assert "--hub free is now --hub coasting" in capsys.readouterr().err
     at_rest = write_case(tmp_path, WEB_CASE.format(E=E, omega=0.0), "rest.toml")
     assert main(["modes", at_rest, "-o", str(out), "--count", "2",
                  "--sweep", "omega=1:2:2"]) == 0  # the sweep gives the spin

@@ -17,10 +17,8 @@ from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.analytic.models import (HALF_PI, ArmParams, accelerations, root_tension)
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe import step
 from spinweb_fe.fe.control import free as free_law
 from spinweb_fe.fe.control import make_control
-from spinweb_fe.fe.forces import eval_elements
 from spinweb_fe.fe.axis import place_rigid
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.layout import SLOTS, row_columns
@@ -28,6 +26,7 @@ from spinweb_fe.fe.model import Elements, build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
 from spinweb_fe.record.energy import ENERGY_LIMIT, ENERGY_WARN, EnergyAudit, energy_balance
 from spinweb_fe.run.loop import Schedule, simulate, start
+from support import eval_elements
 
 E, RHO, A = 180e9, 1540.0, 1.025e-5
 EA = E * A

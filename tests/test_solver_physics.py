@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from meshgen.mesh import Mesh
-from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.control import free
 from spinweb_fe.fe.model import build_model
 from spinweb_fe.fe.state import initial_state
 from spinweb_fe.record.energy import energy_balance

@@ -11,7 +11,7 @@ from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.cli import main
-from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.control import free
 from spinweb_fe.errors import RunError
 from spinweb_fe.fe.model import build_model, choose_dt
 from spinweb_fe.fe.state import initial_state

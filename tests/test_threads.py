@@ -7,7 +7,7 @@ import pytest
 
 from meshgen.flat import flat_quadquad
 from meshgen.tethers import tethers
-from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.control import free
 from spinweb_fe.fe.model import build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
 from spinweb_fe.run.loop import Schedule, simulate

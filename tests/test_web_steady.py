@@ -8,7 +8,7 @@ import numpy as np
 from closed_forms import quadquad_line_tensions
 
 from meshgen.flat import flat_quadquad
-from spinweb_fe.fe.control import LAWS, Control, free
+from spinweb_fe.fe.control import free
 from spinweb_fe.fe.model import build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
 from spinweb_fe.run.loop import Schedule, current_tension, simulate

@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from meshgen.mesh import POLYGON_TAN
-from meshgen.registry import cable_length_per_area
+from meshgen.registry import COILED_FOLDS, cable_length_per_area
 from spinweb_fe.analytic.models import HALF_PI, ArmParams
 from spinweb_fe.analytic.solve import integrate, params_from_case, payout_from_case
 from spinweb_fe.case.scene import control_from_case, prepare
@@ -106,7 +106,7 @@ def analytic_twin(case, params=None, t_end=None, model="consistent"):
     """The analytical model of a case (its own mapping unless ``params`` is given); returns
     (history, AnalyticResult)."""
     p = params or params_from_case(case)
-    coiled = case.fold.pattern in ("star", "coiled")
+    coiled = case.fold.pattern in COILED_FOLDS
     res = integrate(p, control_from_case(case), model=model, t_end=t_end or case.time.end,
                     history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
                     omega_init=case.initial.omega, spin=case.initial.spin,

@@ -225,18 +225,3 @@ def tip_rate(p: ArmParams, phi, omega, psi, coiled) -> float:
     r0 = p.r0
     h = r0 * r0 * omega + r0 * L * c * (omega + psi) + L * L * psi
     return h / (r0 * r0 + L * L + 2.0 * r0 * L * c)
-
-
-def straight_tension(p: ArmParams, omega: float) -> float:
-    """Closed-form root tension [N] of a straight radial arm in steady spin at omega.
-
-    N = omega^2 [m_tip (r0 + H) + m_lin (r0 + H/3) + m_uni (r0 + H/2)].
-    """
-    r0, H = p.r0, p.H
-    return omega ** 2 * (p.m_tip * (r0 + H) + p.m_lin * (r0 + H / 3.0) + p.m_uni * (r0 + H / 2.0))
-
-
-def rigid_inertia(p: ArmParams, phi: float = 0.0) -> float:
-    """Inertia [kg m^2] of hub + fully uncoiled arms frozen at angle phi (rigid rotation)."""
-    m_f, S, I = p.moments(p.H)
-    return p.J0 + p.n * (I + 2.0 * p.r0 * S * math.cos(phi))

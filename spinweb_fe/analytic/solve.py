@@ -12,6 +12,7 @@ docs/analytic.md.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
@@ -19,13 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from meshgen.registry import TOPOLOGIES, cable_length_per_area
+from meshgen.registry import COILED_FOLDS, TOPOLOGIES, cable_length_per_area
 from spinweb_fe.analytic import payout as pay_mod
 from spinweb_fe.analytic.models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
                                         root_tension, solve_rows, tip_rate)
 from spinweb_fe.analytic.payout import Payout
 from spinweb_fe.case.scene import control_from_case
-from spinweb_fe.fe.coil import rate_table
+from spinweb_fe.fe.payout import PAYOUTS, payout_table
 from spinweb_fe.fe.control import Control
 
 log = logging.getLogger(__name__)
@@ -407,7 +408,7 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
     if control.law.prescribes_rate and case.initial.omega != _rate(control, 0.0)[0]:
         log.info("%s starts from its own rate at t = 0: initial.omega = %g is not used",
                  control.law.name, case.initial.omega)
-    coiled = case.fold.pattern in ("star", "coiled")
+    coiled = case.fold.pattern in COILED_FOLDS
     return integrate(p, control, model=model, t_end=case.time.end,
                      history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
                      omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
@@ -415,14 +416,12 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
 
 
 def payout_from_case(case) -> Payout | None:
-    """The case's rate payout law ([stowage] payout = 'rate'), None for a free payout."""
+    """The case's payout law (fe.payout.PAYOUTS: the device's paid-out length table), None
+    for a free payout (or a case without a coil)."""
     st = case.stowage
-    if st.payout != "rate":
+    if st.payout is None or PAYOUTS[st.payout].code == PAYOUTS["free"].code:
         return None
-    if st.payout_rate is not None:
-        return Payout(*rate_table(st.payout_rate))
-    times, lengths = zip(*st.payout_length)
-    return Payout(np.array(times), np.array(lengths))
+    return Payout(*payout_table(dataclasses.asdict(st)))
 
 
 def write(path, case, result: AnalyticResult, rtol: float, atol: float):

@@ -15,11 +15,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from meshgen.registry import TETHER_FOLDS, WEB_FOLDS, area_from_areal_density
+from meshgen.registry import COILED_FOLDS, TETHER_FOLDS, WEB_FOLDS, area_from_areal_density
+from spinweb_fe.case.perturb import SHAPES
 from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, REQUIRED,
                                     SCHEMA, TOP_KEYS, Field)
 from spinweb_fe.errors import InputError
+from spinweb_fe.fe.choice import validate_choice
+from spinweb_fe.fe.coil import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
+from spinweb_fe.fe.model import MOTIONS
+from spinweb_fe.fe.payout import PAYOUTS
 from spinweb_fe.fe.tidal import R_EARTH
 
 def _table_class(name, fields):
@@ -259,10 +264,11 @@ def _cross_check(src, scene, raw, t):
 
 
 def _check_stowage(src, scene, raw, t):
-    """[stowage]: coiled scenes only; the payout law's keys; bundles on webs."""
+    """[stowage]: coiled scenes only; each registry's keys and rules (the coil, the payout
+    device, the bundles); bundles on webs."""
     st, given = t["stowage"], raw.get("stowage") or {}
     pattern = t["fold"]["pattern"]
-    if pattern not in ("star", "coiled"):
+    if pattern not in COILED_FOLDS:
         if given:
             key = next(iter(given))
             raise InputError(src, f"stowage.{key}", f"only a coiled scene has a stowage "
@@ -272,41 +278,18 @@ def _check_stowage(src, scene, raw, t):
         return
     if st["coil"] is None:
         st["coil"] = "held"
-    rate_keys = [k for k in ("payout_rate", "payout_length") if st[k] is not None]
-    if st["payout"] == "rate":
-        if st["coil"] != "held":
-            raise InputError(src, "stowage.payout", "a rate payout needs stowage.coil = 'held'")
-        if not rate_keys:
-            raise InputError(src, "stowage.payout_rate", "required by stowage.payout = 'rate' "
-                             "(or give stowage.payout_length)")
-        if len(rate_keys) == 2:
-            raise InputError(src, "stowage.payout_length",
-                             "give either stowage.payout_rate or stowage.payout_length, not both")
-        table = st["payout_length"]
-        if table is not None:
-            times, lengths = zip(*table)
-            if any(b <= a for a, b in zip(times, times[1:])) or times[0] < 0:
-                raise InputError(src, "stowage.payout_length", "the times must be >= 0 and "
-                                 f"increase, got {list(times)} s")
-            if any(b < a for a, b in zip(lengths, lengths[1:])) or lengths[0] < 0:
-                raise InputError(src, "stowage.payout_length", "the lengths must be >= 0 and "
-                                 f"never decrease, got {list(lengths)} m")
-    elif rate_keys:
-        raise InputError(src, f"stowage.{rate_keys[0]}", "used only with stowage.payout = 'rate'")
-    if st["bundle"] == "none":
-        if st["bundle_release"] is not None:
-            raise InputError(src, "stowage.bundle_release", "used only with a bundle "
-                             "(stowage.bundle = 'until_length' or 'until_time')")
-        return
-    if scene != "web":
+    for reg, key in ((COILS, "coil"), (PAYOUTS, "payout"), (BUNDLES, "bundle")):
+        _choice_ok(src, reg, "stowage", key, t)
+    if st["bundle"] != "none" and scene != "web":
         raise InputError(src, "stowage.bundle", "bundles gather a web's levels: a tether "
                          "scene has none")
-    if st["bundle_release"] is None:
-        raise InputError(src, "stowage.bundle_release",
-                         f"required by stowage.bundle = '{st['bundle']}'")
-    if st["bundle"] == "until_length" and not st["bundle_release"] <= 1.0:
-        raise InputError(src, "stowage.bundle_release", "a fraction of the arm length in "
-                         f"(0, 1], got {st['bundle_release']:g}")
+
+
+def _choice_ok(src, reg, table, key, t):
+    """The chosen entry's keys and rules (fe.choice.validate_choice), or InputError."""
+    problem = validate_choice(reg, table, key, t)
+    if problem is not None:
+        raise InputError(src, *problem)
 
 
 def _check_free_hub(src, t):
@@ -348,9 +331,8 @@ def _check_perturbation(src, scene, t):
     if p["z_amplitude"] > size:
         raise InputError(src, "perturbation.z_amplitude", f"{p['z_amplitude']:g} m is larger "
                          f"than the web ({size:g} m)")
-    if p["hub_tilt_rate"] != 0 and t["hub"]["motion"] != "free":
-        raise InputError(src, "perturbation.hub_tilt_rate", "needs hub.motion = 'free' (a "
-                         "hub on a fixed axis cannot nutate)")
+    _choice_ok(src, MOTIONS, "hub", "motion", t)
+    _choice_ok(src, SHAPES, "perturbation", "shape", t)
     if p["delay"] > 0 and t["stowage"]["coil"] != "held":
         raise InputError(src, "perturbation.delay", "holds an arm's coil on the hub: needs a "
                          "held coil (stowage.coil = 'held', a coiled scene)")

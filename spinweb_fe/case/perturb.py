@@ -27,7 +27,21 @@ import math
 
 import numpy as np
 
+from spinweb_fe.fe.choice import Choice, Param, registry
+
 WAVES = 8  # plane waves of the random field
+
+#: [perturbation] shape: what it does, and its keys (``code``: the branch of
+#: :func:`perturbed` and ``case.scene``'s field)
+SHAPES = registry(
+    Choice("tilt", 0, "the web turned rigidly about the hub-frame x axis (its tied nodes "
+                      "stay)"),
+    Choice("random", 1, "a smooth random field (plane waves, seed), zero at the hub",
+           keys=(Param("seed", "", "nonneg", "shape = random: seed of the field", kind="int",
+                       default=0),)),
+    Choice("mode", 2, "the lowest out-of-plane mode of the deployed web (spinweb modes)"),
+)
+TILT, RANDOM, MODE = (SHAPES[name].code for name in ("tilt", "random", "mode"))
 
 
 def normalised(w: np.ndarray, web: np.ndarray) -> np.ndarray:
@@ -107,7 +121,7 @@ def perturbed(case, model, make_state, field=None):
     web = model.nodes.inv_mass > 0  # not tied to the hub
     pos = np.array(mesh.node_pos, np.float64)
     rate = np.zeros(mesh.n_nodes)
-    if p.shape == "tilt":
+    if SHAPES[p.shape].code == TILT:
         alpha, lever, axis = tilt_angle(mesh.node_ref, np.asarray(mesh.node_sets["tips"]),
                                         p.z_amplitude)
         c, s = math.cos(alpha), math.sin(alpha)

@@ -17,11 +17,13 @@ from meshgen.build import web_mesh
 from meshgen.checks import MeshValueError, check_mesh
 from meshgen.mesh import Mesh
 from meshgen.tethers import tethers
-from spinweb_fe.case.perturb import mode_field, perturbed, random_field
+from spinweb_fe.case.perturb import (RANDOM, SHAPES, TILT, mode_field, perturbed,
+                                     random_field)
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe.coil import BUNDLES, build_coil, rate_table
+from spinweb_fe.fe.coil import BUNDLES, COILS, build_coil
 from spinweb_fe.fe.control import Control, make_control
-from spinweb_fe.fe.model import Model, Nodes, build_model, choose_dt
+from spinweb_fe.fe.model import MOTIONS, Model, Nodes, build_model, choose_dt
+from spinweb_fe.fe.payout import PAYOUTS, payout_table
 from spinweb_fe.fe.rigid import make_body
 from spinweb_fe.fe.rupture import make_strength
 from spinweb_fe.fe.state import State, initial_state
@@ -104,7 +106,7 @@ def model_from_case(case, mesh: Mesh) -> Model:
     if cab.failure_strain is not None:
         model = dataclasses.replace(model, strength=make_strength(
             mesh.n_elems, cab.failure_strain, cab.rupture))
-    if hub.motion == "free":
+    if MOTIONS[hub.motion].code == MOTIONS["free"].code:
         principal = hub.principal_inertia or (hub.inertia_transverse, hub.inertia_transverse,
                                               hub.inertia)
         model = dataclasses.replace(model, body=make_body(hub.mass, principal))
@@ -115,15 +117,12 @@ def model_from_case(case, mesh: Mesh) -> Model:
     st = case.stowage
     if st.coil is None or (st.coil == "loose" and st.bundle == "none"):
         return model  # nothing to hold or bundle: the kernels skip the coil
-    payout = None
-    if st.payout == "rate":
-        payout = (rate_table(st.payout_rate) if st.payout_rate is not None
-                  else tuple(np.array(c) for c in zip(*st.payout_length)))
     hold = None
     if pert.delay > 0:
         hold = np.zeros(mesh.n_arms)
         hold[pert.arm] = pert.delay
-    coil = build_coil(mesh, model.elements.nodes, model.nodes.mass, payout,
+    coil = build_coil(mesh, model.elements.nodes, model.nodes.mass, COILS[st.coil].code,
+                      (PAYOUTS[st.payout].code, payout_table(dataclasses.asdict(st))),
                       (BUNDLES[st.bundle].code, st.bundle_release or 0.0), hold)
     return dataclasses.replace(model, coil=coil)
 
@@ -213,8 +212,7 @@ def prepare(case) -> Scene:
                              f"for control.law = '{control.law.name}'")
     _check_model(case, model)
     model, state = perturbed(case, model, lambda m: initial_state(
-        m, omega0, case.initial.spin, case.stowage.coil == "held",
-        case.perturbation.hub_tilt_rate), _perturbation_field(case, mesh, model))
+        m, omega0, case.initial.spin, case.perturbation.hub_tilt_rate), _perturbation_field(case, mesh, model))
     dt = choose_dt(model, case.time.cfl, case.time.dt, case.output.history_dt)
     n_steps = case.time.end / dt
     if not n_steps <= MAX_STEPS:
@@ -226,9 +224,10 @@ def prepare(case) -> Scene:
 def _perturbation_field(case, mesh: Mesh, model: Model):
     """The shape w (n,) of a ``random`` or ``mode`` perturbation (None: tilt, or none)."""
     p = case.perturbation
-    if p.shape == "tilt" or (p.z_amplitude == 0 and p.vz_amplitude == 0):
+    code = SHAPES[p.shape].code
+    if code == TILT or (p.z_amplitude == 0 and p.vz_amplitude == 0):
         return None
-    if p.shape == "random":
+    if code == RANDOM:
         return random_field(mesh.node_ref, model.hub.tied_idx, p.seed)
     try:
         return mode_field(deployed(case)[1], spin_rate(case))

@@ -9,17 +9,16 @@ from dataclasses import dataclass
 from typing import Any
 
 from meshgen.registry import TETHER_FOLDS, TIES, TOPOLOGIES, WEB_FOLDS, WRAP_SIGN
-from spinweb_fe.fe.coil import BUNDLES, COILS, PAYOUTS
+from spinweb_fe.case.perturb import SHAPES
+from spinweb_fe.fe.choice import registry_keys
+from spinweb_fe.fe.coil import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
+from spinweb_fe.fe.model import MOTIONS
+from spinweb_fe.fe.payout import PAYOUTS
 
 REQUIRED = object()  # marker: the key has no default
 
 SPINS = ("all", "hub")
-MOTIONS = ("fixed_axis", "free")
-#: [perturbation] shape -> what it does
-SHAPES = {"tilt": "the web turned rigidly about the hub-frame x axis (its tied nodes stay)",
-          "random": "a smooth random field (plane waves, seed), zero at the hub",
-          "mode": "the lowest out-of-plane mode of the deployed web (spinweb modes)"}
 MAX_ELEMENTS = 10_000_000  # cable elements of a scene (memory: about 1 kB per element)
 MAX_HISTORY_ROWS = 10_000_000  # time.end / output.history_dt
 MAX_FRAMES = 100_000  # time.end / output.frame_dt
@@ -43,6 +42,15 @@ class Field:
 
 
 F = Field
+
+
+def _choice(name, reg, default, doc) -> dict:
+    """The key that names a registry's entry and the keys of its entries (each optional
+    here; the loader checks them against the chosen entry: fe.choice.validate_choice)."""
+    table = {name: F("str", default, tuple(reg), "", doc)}
+    for key, p in registry_keys(reg).items():
+        table[key] = F(p.kind, p.default, p.check, p.unit, p.doc)
+    return table
 
 
 def _control_table() -> dict:
@@ -92,8 +100,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "mass": F("float", 100.0, "pos", "kg", "hub mass"),
         "inertia": F("float", None, "pos", "kg m^2", "hub inertia (default mass*radius^2)"),
         "friction": F("float", 0.0, "nonneg", "", "Coulomb coefficient of cable-hub contact"),
-        "motion": F("str", "fixed_axis", MOTIONS, "", "fixed_axis: the hub turns about +z; "
-                    "free: a rigid body of six degrees of freedom (docs/solver.md)"),
+        **_choice("motion", MOTIONS, "fixed_axis", "fixed_axis: the hub turns about +z; "
+                  "free: a rigid body of six degrees of freedom (docs/solver.md)"),
         "inertia_transverse": F("float", None, "pos", "kg m^2", "free hub: inertia about a "
                                 "hub-plane axis of an axisymmetric hub (default inertia / 2, "
                                 "a thin ring)"),
@@ -109,17 +117,12 @@ SCHEMA: dict[str, dict[str, Field]] = {
                   "whole hole boundary (frame) or the 4 axis nodes (axes)"),
     },
     "stowage": {
-        "coil": F("str", None, tuple(COILS), "", "coiled scenes: held (the coil turns with "
-                  "the hub until its arm's peel front releases it) or loose (default held)"),
-        "payout": F("str", "free", tuple(PAYOUTS), "", "free: the arm pulls the coil off; "
-                    "rate: never faster than payout_rate or payout_length"),
-        "payout_rate": F("float", None, "pos", "m/s", "payout = rate: paid-out length rate t"),
-        "payout_length": F("table", None, None, "s, m", "payout = rate: [[t, L], ...] paid-out "
-                           "length L at time t, linear between the points"),
-        "bundle": F("str", "none", tuple(BUNDLES), "", "webs: none, or each arm's gathered "
-                    "levels move as one until_length / until_time (two-stage deployment)"),
-        "bundle_release": F("float", None, "pos", "- or s", "bundles open at this fraction of "
-                            "the arm length (until_length) or time (until_time)"),
+        **_choice("coil", COILS, None, "coiled scenes: held (the coil turns with the hub "
+                  "until its arm's peel front releases it) or loose (default held)"),
+        **_choice("payout", PAYOUTS, "free", "how a held coil lets its line out: free (the "
+                  "arm pulls the coil off) or a device (docs/solver.md)"),
+        **_choice("bundle", BUNDLES, "none", "webs: none, or each arm's gathered levels move "
+                  "as one until_length / until_time (two-stage deployment)"),
     },
     "initial": {
         "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),
@@ -127,13 +130,12 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "control": _control_table(),
     "perturbation": {
-        "shape": F("str", "tilt", tuple(SHAPES), "", "out-of-plane shape of z_amplitude and "
-                   "vz_amplitude: tilt, random or mode"),
+        **_choice("shape", SHAPES, "tilt", "out-of-plane shape of z_amplitude and "
+                  "vz_amplitude: tilt, random or mode"),
         "z_amplitude": F("float", 0.0, "nonneg", "m", "largest out-of-plane displacement of "
                          "the web (tilt: of its deployed tips)"),
         "vz_amplitude": F("float", 0.0, "nonneg", "m/s", "largest out-of-plane velocity of "
                           "the web's free nodes, same shape"),
-        "seed": F("int", 0, "nonneg", "", "shape = random: seed of the field"),
         "hub_tilt_rate": F("float", 0.0, "finite", "rad/s", "free hub: initial rate about "
                            "its x axis (nutation)"),
         "arm": F("int", 0, "nonneg", "", "the arm of tip_mass_scale and delay"),

@@ -24,10 +24,11 @@ def add_parser(sub):
     p.add_argument("--omega", type=float, default=None, metavar="RAD_S",
                    help="spin rate [rad/s] (default: initial.omega, or the largest rate of a "
                         "prescribed-rate law for a run that starts at rest)")
-    p.add_argument("--hub", choices=("driven", "free"), default="driven",
+    p.add_argument("--hub", choices=("driven", "coasting", "free"), default="driven",
                    help="driven: the hub rate is prescribed (tied nodes fixed in the "
-                        "rotating frame); free: the hub (inertia hub.inertia) may turn "
-                        "(default: driven)")
+                        "rotating frame); coasting: the hub (inertia hub.inertia) turns on its "
+                        "fixed axis with no torque ('free' is the old name of coasting, not "
+                        "hub.motion = 'free') (default: driven)")
     p.add_argument("--count", type=int, default=10, metavar="K",
                    help="number of modes, the lowest in- and out-of-plane together "
                         "(default: 10)")
@@ -38,8 +39,12 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from spinweb_fe.linear import study
+    from spinweb_fe.run import modal as study
 
+    if args.hub == "free":
+        log.warning("warning: --hub free is now --hub coasting (a hub turning freely on its "
+                    "fixed axis, not the free rigid hub of hub.motion = 'free')")
+        args.hub = "coasting"
     if args.count < 1:
         raise InputError("--count", "", f"must be >= 1, got {args.count}")
     sweep = study.parse_sweep(args.sweep) if args.sweep is not None else None
@@ -64,7 +69,7 @@ def run(args) -> int:
 
 
 def _sweep(case, sweep, omega, args, folder):
-    from spinweb_fe.linear import study
+    from spinweb_fe.run import modal as study
     from spinweb_fe.linear.modes_io import format_sweep, write_sweep_csv
     from spinweb_fe.post.modes_plot import plot_sweep
 

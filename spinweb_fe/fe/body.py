@@ -26,7 +26,7 @@ from spinweb_fe.fe.coil import gather_bundles, release_fronts, scatter_bundles
 from spinweb_fe.fe.contact import contact_free
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
-                                 hub_centre, inv_inertia, mul, place_body, rotation,
+                                 hub_centre, inv_inertia, mul, rotation,
                                  spatial_inertia)
 from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 

@@ -17,7 +17,8 @@ node (its spine node) carries the level's summed mass and force, the others copy
 bundles open (each node keeps the bundle's velocity) when the arm has paid out a given
 fraction of its length, or at a given time.
 
-Registries of the choices: :data:`COILS`, :data:`PAYOUTS`, :data:`BUNDLES`.
+Registries of the choices: :data:`COILS`, :data:`BUNDLES` (and the payout devices,
+:data:`spinweb_fe.fe.payout.PAYOUTS`).
 """
 
 from __future__ import annotations
@@ -27,26 +28,34 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-
-class Choice(NamedTuple):
-    """A named choice of the stowage: its kernel code and what it does."""
-
-    code: int
-    doc: str
+from spinweb_fe.fe.choice import Choice, Param, registry
 
 
-COILS = {"held": Choice(1, "every coil node moves with the hub until its arm's peel front "
-                           "releases it"),
-         "loose": Choice(0, "the coil lies on the hub with nothing holding it (contact only)")}
-PAYOUTS = {"free": Choice(0, "the front advances when the free part pulls it off the hub"),
-           "rate": Choice(1, "as free, but never ahead of a prescribed paid-out length "
-                             "(payout_rate or payout_length)")}
-BUNDLES = {"none": Choice(0, "every node moves on its own"),
-           "until_length": Choice(1, "levels move as one until the arm has paid out "
-                                     "bundle_release times its length"),
-           "until_time": Choice(2, "levels move as one until t = bundle_release")}
-#: the last time of a payout_rate law's table [s]: L(t) = rate t up to here
-RATE_HORIZON = 1e9
+def _release_fraction(tables):
+    if tables["stowage"]["bundle_release"] > 1.0:
+        return "stowage.bundle_release", ("a fraction of the arm length in (0, 1], got "
+                                          f"{tables['stowage']['bundle_release']:g}")
+    return None
+
+
+COILS = registry(
+    Choice("loose", 0, "the coil lies on the hub with nothing holding it (contact only)"),
+    Choice("held", 1, "every coil node moves with the hub until its arm's peel front releases "
+                      "it", analytic="the coil turns with the hub (every regime)"),
+)
+BUNDLES = registry(
+    Choice("none", 0, "every node moves on its own",
+           analytic="the arm model: each arm a line of its own"),
+    Choice("until_length", 1, "levels move as one until the arm has paid out bundle_release "
+                              "times its length",
+           keys=(Param("bundle_release", "1", "pos", "bundles open at this fraction of the "
+                       "arm length (until_length) or time (until_time)"),),
+           need=(("bundle_release",),), check=_release_fraction),
+    Choice("until_time", 2, "levels move as one until t = bundle_release",
+           keys=(Param("bundle_release", "s", "pos", "bundles open at this fraction of the "
+                       "arm length (until_length) or time (until_time)"),),
+           need=(("bundle_release",),)),
+)
 
 
 class Coil(NamedTuple):
@@ -80,12 +89,12 @@ class Coil(NamedTuple):
         Arm coordinate where the arm is attached once all its levels are released.
     base_rim : (n_arms,) bool
         The arm's base lies on the hub rim (tethers) or not (the web's frame corner).
-    wrap : int
-        +1 trailing coil (clockwise with growing arm coordinate), -1 leading.
-    radius : float [m]
-        Hub radius.
+    coil_code : int
+        The coil (:data:`COILS`): 1 held, 0 loose.
+    payout_code : int
+        The payout device (fe.payout.PAYOUTS): 0 free, 1 rate.
     payout_t, payout_len : (P,) float64 [s], [m]
-        Paid-out length allowed by a rate payout, linear between points (empty: free payout).
+        The payout law's paid-out length, linear between points (empty: none).
     bundle_code : int
         0 none, 1 until_length, 2 until_time.
     bundle_value : float
@@ -110,8 +119,8 @@ class Coil(NamedTuple):
     arm_end: np.ndarray
     arm_base: np.ndarray
     base_rim: np.ndarray
-    wrap: int
-    radius: float
+    coil_code: int
+    payout_code: int
     payout_t: np.ndarray
     payout_len: np.ndarray
     bundle_code: int
@@ -132,7 +141,7 @@ def no_coil(n_arms: int = 0) -> Coil:
     return Coil(np.zeros(n_arms + 1, np.int64), i0, np.zeros(0, np.int64), np.zeros((0, 3)), f0,
                 f0, np.zeros(0, bool), i0, np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), f0, np.zeros(n_arms), np.zeros(n_arms),
-                np.zeros(n_arms, bool), 0, 0.0, f0, f0, 0, 0.0, np.zeros(n_arms))
+                np.zeros(n_arms, bool), 0, 0, f0, f0, 0, 0.0, np.zeros(n_arms))
 
 
 def _levels(mesh, coil_nodes):
@@ -166,7 +175,8 @@ def _free_elements(elem_nodes, level_of, level_arm, level_coord, level_first):
     return ptr.astype(np.int64), el, fr, to
 
 
-def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0), hold=None) -> Coil:
+def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundle=(0, 0.0),
+               hold=None) -> Coil:
     """The Coil of a coiled mesh (``mesh.node_sets['coil']``), its levels and free elements.
 
     Parameters
@@ -174,8 +184,10 @@ def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0), hold=N
     mesh : meshgen.mesh.Mesh
     elem_nodes : (m, 2) int64
     node_mass : (n,) float64 [kg]
-    payout : None or ((P,) times [s], (P,) lengths [m])
-        The rate law's paid-out length table; None: free payout.
+    coil_code : int
+        See :data:`COILS`.
+    payout : (code, None or ((P,) times [s], (P,) lengths [m]))
+        The payout device (fe.payout.PAYOUTS) and its law's paid-out length table.
     bundle : (code, value)
         See :data:`BUNDLES`.
     hold : None or (n_arms,) float64 [s]
@@ -211,7 +223,7 @@ def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0), hold=N
             base_rim[k] = bool(np.all(on_rim[top]))
         else:
             bases[k] = mine.min() - step
-    t, L = (np.zeros(0), np.zeros(0)) if payout is None else payout
+    t, L = (np.zeros(0), np.zeros(0)) if payout[1] is None else payout[1]
     return Coil(
         arm_ptr=arm_ptr, level_ptr=level_ptr, level_nodes=nodes,
         level_ref=np.ascontiguousarray(mesh.node_pos[nodes], np.float64), level_coord=coord,
@@ -219,22 +231,18 @@ def build_coil(mesh, elem_nodes, node_mass, payout=None, bundle=(0, 0.0), hold=N
         level_rim=np.logical_and.reduceat(on_rim[nodes], level_ptr[:-1]),
         test_ptr=test_ptr, test_elem=t_el, test_from=t_from, test_to=t_to,
         test_to_coord=coord[level_of[t_to]], arm_end=ends, arm_base=bases, base_rim=base_rim,
-        wrap=int(mesh.wrap), radius=float(mesh.hub_radius),
+        coil_code=int(coil_code), payout_code=int(payout[0]),
         payout_t=np.asarray(t, np.float64), payout_len=np.asarray(L, np.float64),
         bundle_code=int(bundle[0]), bundle_value=float(bundle[1]),
         arm_hold=np.zeros(mesh.n_arms) if hold is None else np.asarray(hold, np.float64))
 
 
-def rate_table(rate: float):
-    """The paid-out length table of a constant payout rate [m/s]: L(t) = rate t."""
-    return np.array([0.0, RATE_HORIZON]), np.array([0.0, rate * RATE_HORIZON])
-
-
-def coil_start(coil: Coil, held: bool) -> CoilState:
-    """Fronts at the start: a held coil has only its tip level free (none while the arm is
-    held whole, ``arm_hold`` > 0); a loose one all."""
+def coil_start(coil: Coil) -> CoilState:
+    """Fronts at the start: a held coil (``coil_code`` 1) has only its tip level free (none
+    while the arm is held whole, ``arm_hold`` > 0); a loose one all."""
     n_arms = len(coil.arm_ptr) - 1
     counts = np.diff(coil.arm_ptr)
+    held = coil.coil_code == COILS["held"].code
     front = np.where(coil.arm_hold > 0, 0, np.minimum(counts, 1)) if held else counts.copy()
     return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0))
 
@@ -353,7 +361,7 @@ def scatter_bundles(coil, cs, pos, vel):
 def payout_allowed(coil, t):
     """Paid-out length [m] a rate payout allows at time t (inf: free payout)."""
     tt, ll = coil.payout_t, coil.payout_len
-    if tt.shape[0] == 0:
+    if coil.payout_code != 1:  # fe.payout.PAYOUTS: only 'rate' bounds the payout
         return np.inf
     if t <= tt[0]:
         return ll[0]

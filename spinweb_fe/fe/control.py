@@ -18,6 +18,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit
 
+from spinweb_fe.fe.choice import Param
+
 
 @njit(cache=True)
 def eval_control(law, t, omega):
@@ -35,16 +37,6 @@ def eval_control(law, t, omega):
     if law.code == 3:  # constant_torque
         return False, p[0]
     return False, 0.0  # free
-
-
-@dataclass(frozen=True)
-class Param:
-    """One case key of a law: name, SI unit, check ('finite', 'nonzero', 'pos'), doc."""
-
-    name: str
-    unit: str
-    check: str
-    doc: str
 
 
 @dataclass(frozen=True)

@@ -334,17 +334,3 @@ def internal_forces(elems, links, pos, vel, work, record):
     se, tmax, pdamp = element_forces(elems, links, pos, vel, work, bool(record), None)
     node_forces(links, work, None)
     return se, tmax, pdamp
-
-
-def eval_elements(elems, pos, vel, force, tension, want_energy):
-    """Tension-only truss forces of every element added into ``force`` (n, 3), tensions into
-    ``tension`` (m,) unless it is empty (Python entry for tests and studies: builds the
-    :class:`Links` and a :class:`Work`). Returns (strain energy [J] if ``want_energy`` else
-    0, max tension [N] if ``want_energy`` else 0, damping power [W])."""
-    work = make_work(len(pos), len(elems.nodes))
-    se, tmax, pdamp = internal_forces(elems, make_links(elems.nodes, len(pos)), pos, vel, work,
-                                      True)
-    force += work.force
-    if len(tension):
-        tension[:] = work.tension
-    return (se, tmax, pdamp) if want_energy else (0.0, 0.0, pdamp)

@@ -47,17 +47,3 @@ def damped_tension(n_el, strain, cdamp_e, ldot):
     """N_el + c dL/dt while taut, never negative [N]."""
     taut = 1.0 if strain > 0.0 else 0.0
     return max(n_el + taut * cdamp_e * ldot, 0.0)
-
-
-@njit(inline="always")
-def add_pair(force, i, j, c, dx, dy, dz):
-    """force[i] += c (dx, dy, dz), force[j] -= the same."""
-    fx = c * dx
-    fy = c * dy
-    fz = c * dz
-    force[i, 0] += fx
-    force[i, 1] += fy
-    force[i, 2] += fz
-    force[j, 0] -= fx
-    force[j, 1] -= fy
-    force[j, 2] -= fz

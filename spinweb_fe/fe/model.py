@@ -18,9 +18,30 @@ from meshgen.mesh import Mesh, lumped_mass
 from spinweb_fe.fe.coil import Coil, no_coil
 from spinweb_fe.fe.forces import Links, make_links
 from spinweb_fe.fe.axis import Axis
+from spinweb_fe.fe.choice import Choice, Param, registry
 from spinweb_fe.fe.rigid import Body
 from spinweb_fe.fe.rupture import Strength, no_strength
 from spinweb_fe.fe.tidal import Environment, no_environment
+
+
+def _nutates(tables):
+    if tables["perturbation"]["hub_tilt_rate"] != 0:
+        return "perturbation.hub_tilt_rate", ("needs hub.motion = 'free' (a hub on a fixed "
+                                              "axis cannot nutate)")
+    return None
+
+
+#: how the hub moves: the step loop's hub kind (:attr:`Model.hub_kind`: fe.axis or fe.body)
+MOTIONS = registry(
+    Choice("fixed_axis", 0, "the hub turns about +z through the origin (fe.axis); the axis "
+                            "holds it in place and reacts the out-of-plane loads",
+           check=_nutates, analytic="the analytical model's hub (Eq. 4)"),
+    Choice("free", 1, "a rigid body of six degrees of freedom with its tied nodes and held "
+                      "coil (fe.body, fe.rigid)",
+           keys=(Param("principal_inertia", "kg m^2", "pos", "free hub: principal moments "
+                       "[I_x, I_y, I_z] about the hub-frame axes (z the spin axis), instead of "
+                       "inertia and inertia_transverse", kind="vector"),)),
+)
 
 
 class Elements(NamedTuple):

@@ -129,11 +129,10 @@ def from_arrays(arrays: dict) -> State:
     return State(**kw)
 
 
-def initial_state(model, omega: float, spin: str = "all", held: bool = True,
-                  tilt_rate: float = 0.0) -> State:
+def initial_state(model, omega: float, spin: str = "all", tilt_rate: float = 0.0) -> State:
     """Initial positions from the mesh; rigid spin omega [rad/s] of hub and web ('all') or of
-    the hub and what moves with it only ('hub'). A coiled model's coil is ``held`` (only its
-    tip level free) or loose. A free hub (``model.free_hub``) also turns at ``tilt_rate``
+    the hub and what moves with it only ('hub'). A coiled model's coil is held (only its
+    tip level free) or loose, as its ``coil_code`` says. A free hub (``model.free_hub``) also turns at ``tilt_rate``
     [rad/s] about its x axis, with the nodes that move with it. Velocities are v_0 (see
     ``run.loop.start``)."""
     pos = np.array(model.mesh.node_pos, dtype=np.float64)
@@ -143,7 +142,7 @@ def initial_state(model, omega: float, spin: str = "all", held: bool = True,
         vel[:, 1] = omega * pos[:, 0]
     hub, coil = model.hub, model.coil
     place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, 0.0, omega)
-    cs = coil_start(coil, held)
+    cs = coil_start(coil)
     mass, inv = model.nodes.mass.copy(), model.nodes.inv_mass.copy()
     spans = [np.arange(coil.level_ptr[coil.arm_ptr[k] + f], coil.level_ptr[coil.arm_ptr[k + 1]])
             for k, f in enumerate(cs.front)]

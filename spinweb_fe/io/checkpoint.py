@@ -18,8 +18,10 @@ and the history row of step n itself are not (the continued run writes them). It
 The control laws keep no memory of their own, so nothing else is needed. The file is written
 to a temporary name and renamed (``os.replace``), so a run killed while writing leaves the
 previous checkpoint intact. Version 3 added the free hub's rigid body (``/state/rigid/...``)
-and the gravity-gradient work (``/state/totals/gravity_work``); version 1 files (before the
-held coil) and version 2 files (before the free hub) are refused with a one-line reason.
+and the gravity-gradient work (``/state/totals/gravity_work``); version 4 holds the energy
+terms as one array in the order of fe.layout.STEP_TERMS (``/state/totals``) and no rigid
+body for a fixed axis, and reads version 3 files too; version 1 files (before the held coil)
+and version 2 files (before the free hub) are refused with a one-line reason.
 """
 
 from __future__ import annotations
@@ -40,7 +42,9 @@ from spinweb_fe.io.h5 import open_h5
 
 CHECKPOINT_NAME = "checkpoint.h5"
 CHECKPOINT_FORMAT = "spinweb-checkpoint"
-CHECKPOINT_VERSION = 3
+CHECKPOINT_VERSION = 4
+#: the versions this spinweb continues (fe.state.from_arrays reads version 3's totals)
+READS = (3, 4)
 #: why an older version cannot be continued
 OLD_VERSIONS = {1: "version 1 predates the held coil", 2: "version 2 predates the free hub"}
 
@@ -195,7 +199,7 @@ def read_checkpoint(path) -> Checkpoint:
         if a.get("format") != CHECKPOINT_FORMAT:
             raise InputError(path, "format", "not a spinweb checkpoint")
         version = int(a.get("checkpoint_version", -1))
-        if version != CHECKPOINT_VERSION:
+        if version not in READS:
             why = OLD_VERSIONS.get(version, "an unknown version")
             raise InputError(path, "checkpoint_version",
                              f"version {a.get('checkpoint_version')} is not supported "

@@ -74,11 +74,6 @@ def holder(folder) -> dict | None:
         os.close(fd)
 
 
-def stale_lock(folder) -> bool:
-    """True if ``DIR/run.lock`` exists but no process holds it (the run was killed)."""
-    return (Path(folder) / LOCK_NAME).exists() and holder(folder) is None
-
-
 def describe(info: dict) -> str:
     """'pid 1234 on host, started 2026-01-01T10:00:00: spinweb run ...'."""
     if not info:

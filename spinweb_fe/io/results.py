@@ -312,9 +312,17 @@ class ResultWriter(Recorder):
             raise exc
 
     def checkpoint(self, state, memory):
-        """Before the checkpoint (a later recorder) reads the rows and frames written."""
+        """Everything up to the checkpoint on disk (see :meth:`written`)."""
         self._settle()
         self._write_rows()
+
+    def written(self) -> tuple:
+        """(history rows, PVD entries (time [s], file), run_id) on disk now: the frame in
+        flight and the rows kept in memory are written first, so a checkpoint taken from
+        this continues exactly after them (whatever the recorders' order)."""
+        self._settle()
+        self._write_rows()
+        return self.n_rows, list(self.pvd_entries), self.run_id
 
     def end(self, status):
         self._settle()

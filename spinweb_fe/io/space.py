@@ -11,7 +11,6 @@ program filled the disk), gives the final flush and close the room they need.
 from __future__ import annotations
 
 import errno
-import os
 import shutil
 from pathlib import Path
 

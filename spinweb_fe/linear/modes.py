@@ -13,7 +13,7 @@ gyroscopic: solved as the first-order problem A z = lambda B z, z = (u, lambda u
 A = [[0, I], [-K, -G]], B = diag(I, M), by ``eigs`` on (A - sigma B)^-1 B, which needs only
 the sparse LU of K + sigma G + sigma^2 M (sigma a small negative real shift: the closest
 eigenvalues, +-i omega_k, are the lowest). With the hub ``driven`` the tied nodes are fixed;
-with the hub ``free`` the rigid rotation theta of the hub and its tied nodes (u_i = theta J
+with the hub ``coasting`` (turning freely on its fixed axis) the rigid rotation theta of the hub and its tied nodes (u_i = theta J
 p_i) is one more degree of freedom, with the hub's inertia J_hub, and the prestress of the
 tied nodes adds sum_i F_i . p_i to its stiffness, so that a rigid rotation of everything is
 exactly a zero mode.
@@ -37,8 +37,7 @@ from spinweb_fe.linear.steady import (Structure, SteadyState, block_stiffness,
 
 log = logging.getLogger(__name__)
 
-HUBS = ("driven", "free")
-KINDS = ("in_plane", "out_of_plane")
+HUBS = ("driven", "coasting")
 DENSE_MAX = 400  # up to this many (first-order) unknowns, dense eigensolvers
 SHIFT = 1e-2  # the shift sigma, as a fraction of omega (in-plane) or omega^2 (out of plane)
 ZERO = 1e-4  # |lambda| below ZERO |omega| is a zero mode (a drift, or a mechanism)
@@ -54,7 +53,7 @@ class Modes:
     omega : float [rad/s]
         Spin rate.
     hub : str
-        'driven' or 'free'.
+        'driven' or 'coasting'.
     frequency : (k,) float64 [rad/s]
         Imaginary part of the eigenvalue (>= 0).
     growth : (k,) float64 [1/s]
@@ -110,10 +109,10 @@ class InPlane:
         J = _rotation(n)
         free = s.free_nodes
         cols = np.column_stack([2 * free, 2 * free + 1]).ravel()
-        d = len(cols) + (hub == "free")
+        d = len(cols) + (hub == "coasting")
         T = coo_matrix((np.ones(len(cols)), (cols, np.arange(len(cols)))), shape=(2 * n, d))
         extra = 0.0
-        if hub == "free":  # theta moves the tied nodes by theta J p
+        if hub == "coasting":  # theta moves the tied nodes by theta J p
             p = xy[s.tied_idx]
             rows = np.column_stack([2 * s.tied_idx, 2 * s.tied_idx + 1]).ravel()
             vals = np.column_stack([-p[:, 1], p[:, 0]]).ravel()
@@ -122,7 +121,7 @@ class InPlane:
         T = T.tocsr()
         hub_m = np.zeros(d)
         hub_k = np.zeros(d)
-        if hub == "free":
+        if hub == "coasting":
             hub_m[-1], hub_k[-1] = s.hub_inertia, extra
         proj = lambda A: (T.T @ A @ T).tocsr()  # noqa: E731
         self.T = T
@@ -247,9 +246,9 @@ def compute_modes(s: Structure, st: SteadyState, count: int, hub: str = "driven"
         From :func:`spinweb_fe.linear.steady.solve_steady` at the spin rate wanted.
     count : int
         Number of modes (>= 1).
-    hub : {'driven', 'free'}
-        Hub rate prescribed (tied nodes fixed in the rotating frame) or the hub free to turn
-        (its inertia J_hub one more in-plane degree of freedom).
+    hub : {'driven', 'coasting'}
+        Hub rate prescribed (tied nodes fixed in the rotating frame) or the hub turning with
+        no torque on its fixed axis (its inertia J_hub one more in-plane degree of freedom).
 
     Returns
     -------
@@ -294,22 +293,12 @@ def compute_modes(s: Structure, st: SteadyState, count: int, hub: str = "driven"
 
 
 def _check_zero_modes(s, st, rows, hub):
-    """Slack elements and more zero modes than the free hub's rigid rotation: a mechanism."""
+    """Slack elements and more zero modes than the coasting hub's rigid rotation: a mechanism."""
     scale = abs(st.omega)
     zero = [r for r in rows if math.hypot(r[0], r[1]) < ZERO * scale]
     for r in (r for r in rows if r[1] != 0.0):
         log.warning("unstable %s mode: growth rate %.4g 1/s (frequency %.4g rad/s)",
                     r[2], r[1], r[0])
-    if len(st.slack) and len(zero) > (hub == "free"):
+    if len(st.slack) and len(zero) > (hub == "coasting"):
         raise RunError(f"the steady state is a mechanism: {len(zero)} zero-frequency modes, "
                        f"{len(st.slack)} slack elements ({describe_elements(s, st.slack)})")
-
-
-def rigid_rotation(mats: InPlane, st: SteadyState, hub: str) -> np.ndarray:
-    """(d,) reduced vector of the rigid rotation of everything, every node moving by J p
-    (with the hub free, a null vector of K)."""
-    xy = st.position[:, :2]
-    q = mats.T.T @ np.column_stack([-xy[:, 1], xy[:, 0]]).ravel()
-    if hub == "free":
-        q[-1] = 1.0
-    return q

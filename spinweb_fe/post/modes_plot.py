@@ -19,7 +19,7 @@ def plot_sweep(path, name: str, unit: str, points, title: str = "") -> Path:
     path : str or Path
     name, unit : str
         The swept parameter ('omega' or 'tip_mass') and its unit.
-    points : list of spinweb_fe.linear.study.SweepPoint
+    points : list of spinweb_fe.run.modal.SweepPoint
     title : str
     """
     import matplotlib

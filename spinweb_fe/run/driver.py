@@ -45,12 +45,12 @@ class Checkpointer(Recorder):
                   *(state.rigid or ()))
         if not all(np.all(np.isfinite(a)) for a in arrays):
             raise RunError("non-finite state at a checkpoint (numerical instability)", time=t)
-        w = self.writer
+        rows, entries, run_id = self.writer.written()
         ck = Checkpoint(
-            state=state, dt=self.dt, history_rows=w.n_rows, frames=len(w.pvd_entries),
-            pvd_entries=list(w.pvd_entries), case_toml=self.case.to_toml(),
-            case_source=self.case.source, checkpoint_dt=self.checkpoint_dt, memory=memory,
-            threads=self.threads, run_id=w.run_id)
+            state=state, dt=self.dt, history_rows=rows, frames=len(entries),
+            pvd_entries=entries, case_toml=self.case.to_toml(), case_source=self.case.source,
+            checkpoint_dt=self.checkpoint_dt, memory=memory, threads=self.threads,
+            run_id=run_id)
         if self.guard is not None:
             self.guard.need(checkpoint_bytes(ck), "a checkpoint", t)
         try:

@@ -18,6 +18,7 @@ from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.forces import internal_forces, make_work
 from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS, STRENGTH, VEC_WIDTH, VECTOR, named
 from spinweb_fe.fe.model import Model
+from spinweb_fe.fe.payout import PAYOUTS
 from spinweb_fe.fe.state import State
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
@@ -142,7 +143,7 @@ class _Chunks:
                                             else 0)), SLOTS)
         self.vec = np.zeros((rows, VEC_WIDTH)) if vectors or model.free_hub else None
         self.coiled = len(model.coil.level_nodes) > 0
-        self.rate = len(model.coil.payout_t) > 0
+        self.rate = model.coil.payout_code == PAYOUTS["rate"].code
         self.row_dt = rec_every * dt
         self.tracker = tracker
         self.model = model

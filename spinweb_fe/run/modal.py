@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spinweb_fe.case.scene import NO_SPIN, deployed, spin_rate  # noqa: F401 (spin_rate: cli)
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.linear.modes import Modes, compute_modes
-from spinweb_fe.case.scene import NO_SPIN, deployed, spin_rate  # noqa: F401 (spin_rate: cli)
 from spinweb_fe.linear.steady import SteadyState, Structure, check_mechanism, solve_steady
 
 log = logging.getLogger(__name__)
@@ -41,7 +41,7 @@ def analyse(case, omega: float, count: int, hub: str = "driven", built=None) -> 
     case : spinweb_fe.case.Case
     omega : float [rad/s]
     count : int
-    hub : {'driven', 'free'}
+    hub : {'driven', 'coasting'}
     built : (mesh, Structure) or None
         The deployed web, if already built (:func:`spinweb_fe.case.scene.deployed`).
 
@@ -108,7 +108,7 @@ def sweep(case, name: str, values, omega: float, count: int, hub: str = "driven"
     omega : float [rad/s]
         The spin rate of a tip_mass sweep.
     count : int
-    hub : {'driven', 'free'}
+    hub : {'driven', 'coasting'}
 
     Returns
     -------
