@@ -14,6 +14,8 @@ LAYERS = ("meshgen", "spinweb_fe.errors", "spinweb_fe.fe", "spinweb_fe.record", 
           "spinweb_fe.linear", "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic",
           "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli", "spinweb_fe.__main__")
 MAX_LINES = 500
+#: the folders of scripts beside the package (tests never import them)
+SCRIPTS = ("benchmarks", "studies", "tools")
 MAX_KERNEL_PARAMS = 14
 
 
@@ -46,7 +48,7 @@ def imports_of(path: Path, name: str, known) -> set:
                        for a in node.names]
         else:
             continue
-        found.update(t for t in targets if t.split(".")[0] in PACKAGES + ("benchmarks",))
+        found.update(t for t in targets if t.split(".")[0] in PACKAGES + SCRIPTS)
     return found
 
 
@@ -133,11 +135,11 @@ def test_nothing_imports_the_command_line(graph):
     assert not bad, bad
 
 
-def test_tests_never_import_benchmarks():
+def test_tests_never_import_the_scripts():
     mods = library_modules()
     for path in sorted((ROOT / "tests").glob("*.py")):
         deps = imports_of(path, "tests." + path.stem, mods)
-        assert not any(d.startswith("benchmarks") for d in deps), path.name
+        assert not any(d.split(".")[0] in SCRIPTS for d in deps), path.name
         text = path.read_text()
         assert "spec_from_file_location" not in text or path.name == Path(__file__).name, \
             f"{path.name} loads a file by path"
