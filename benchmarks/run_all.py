@@ -1,6 +1,6 @@
 """All benchmarks, one after the other (``make bench``); results in benchmarks/results/.
 
-    python benchmarks/run_all.py [--only throughput limit anchor ramp feature_cost profile scaling wp
+    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp
                                   energy]
                                  [--wait-quiet 30]
 
@@ -9,7 +9,6 @@
   compile time (empty NUMBA_CACHE_DIR, in a fresh process);
 - limit_ratio.json (and the ``limit_ratio`` key of throughput.json): spinweb's bare loop
   against the C loops of ../shared/limit, interleaved, 1 and 2 threads (limit_ratio.py);
-  anchor_sweep.json/png: a node-anchored sweep prototype against both (anchor_sweep.py);
 - ramp_run.json: cases/paper_ramp_web.toml (10 s at the README's accuracy: cfl 0.3 with 1
   and with 2 elements per segment; frames and results.h5 written) on 2 threads and 1 thread,
   wall time per run;
@@ -106,7 +105,7 @@ def ramp(wait):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parts = ["throughput", "limit", "anchor", "ramp", "feature_cost", "profile", "scaling",
+    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling",
              "wp", "energy"]
     ap.add_argument("--only", nargs="+", choices=parts, default=parts)
     ap.add_argument("--wait-quiet", type=float, default=30.0,
@@ -122,7 +121,7 @@ def main(argv=None):
             ramp(wait)
         else:
             wait_for_quiet(max_wait=wait)
-            script = {"limit": "limit_ratio.py", "anchor": "anchor_sweep.py",
+            script = {"limit": "limit_ratio.py",
                       "feature_cost": "feature_cost.py",
                       "profile": "profile_loop.py",
                       "scaling": "scaling.py", "wp": "work_precision.py",
