@@ -28,7 +28,7 @@ mutate: $(STAMP)
 	$(BIN)/python tests/mutate.py
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/run_all.py
+	$(BIN)/python -m benchmarks.run_all
 
 clean:
 	rm -rf out .pytest_cache

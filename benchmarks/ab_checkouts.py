@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from throughput import machine
+from benchmarks.common import machine
 
 
 def commit(root: Path) -> str:

@@ -36,9 +36,9 @@ import json
 from pathlib import Path
 
 import numpy as np
-from energy_drift import straight_tethers
-from throughput import machine
 
+from benchmarks.common import machine
+from benchmarks.energy_drift import straight_tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.record.arms import ArmTracker

@@ -32,8 +32,8 @@ import re
 from pathlib import Path
 
 import numpy as np
-from throughput import machine, spinning_web
 
+from benchmarks.common import machine, spinning_web
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.fe.model import choose_dt

@@ -1,6 +1,6 @@
 """Cost of each solver feature, present and absent, against a minimal reference loop.
 
-    python benchmarks/feature_cost.py [--mesh-width 0.5] [--steps 600] [--repeat 5]
+    python -m benchmarks.feature_cost [--mesh-width 0.5] [--steps 600] [--repeat 5]
 
 Scene: the flat spinning QuadQuad web of benchmarks/throughput.py (S = 100 m, Zylon, 10 kg
 corners, every node at 2 pi rad/s, unstretched), one thread, the same dt for every variant.
@@ -41,8 +41,8 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from throughput import RHO, A, E, load_average, machine
 
+from benchmarks.common import RHO, A, E, load_average, machine
 from meshgen.flat import flat_quadquad
 from spinweb_fe.fe.control import free, make_control
 from spinweb_fe.fe.forces import element_forces, make_work, node_forces

@@ -1,6 +1,6 @@
 """spinweb's bare step loop against the hand-written C loop of ../shared/limit, in one run.
 
-    python benchmarks/limit_ratio.py [--rounds 3] [--steps 300] [--mesh fine|coarse] [--replot]
+    python -m benchmarks.limit_ratio [--rounds 3] [--steps 300] [--mesh fine|coarse] [--replot]
 
 Builds ``../shared/limit/limit.c`` with gcc (``-O3 -march=native -fno-math-errno -fopenmp``,
 as its README says) into a temporary folder, then runs, interleaved A B A B for ``--rounds``
@@ -29,7 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from throughput import load_average, machine, measure, spinning_web
+from benchmarks.common import load_average, machine, measure, spinning_web
 
 ROOT = Path(__file__).resolve().parent.parent
 LIMIT = ROOT.parent / "shared" / "limit" / "limit.c"

@@ -1,6 +1,6 @@
 """Run the paper's FE cases to their end and summarise them (issue: explicit solver).
 
-    python benchmarks/paper_runs.py [--cases paper_free_web ...] [--out out/paper]
+    python -m benchmarks.paper_runs [--cases paper_free_web ...] [--out out/paper]
 
 Writes results into OUT/<case>/ (results.h5, ParaView frames), a four-panel plot per case to
 docs/img/paper_<case>.png, and benchmarks/results/paper_runs.json with, per case: steps, dt,
@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import machine
 from spinweb_fe import case as case_mod
 from spinweb_fe.post.plot import four_panel
 from spinweb_fe.record.energy import energy_balance
@@ -52,9 +52,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out_json = ROOT / "benchmarks" / "results" / "paper_runs.json"
     summary = json.loads(out_json.read_text()) if out_json.exists() else {}
-    # the machine of the latest run; each case row carries its own date
-    from throughput import machine  # the CPU model and ISA, as every benchmark records them
-
+    # the machine of the latest run (CPU model and ISA); each case row carries its own date
     summary["machine"] = dict(machine(), date=time.strftime("%Y-%m-%d"))
     for name in args.cases:
         case = case_mod.load(ROOT / "cases" / f"{name}.toml", args.sets)

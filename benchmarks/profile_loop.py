@@ -1,6 +1,6 @@
 """Where the step loop's time goes: ns per element-update of each pass of the step.
 
-    python benchmarks/profile_loop.py [--mesh-width 0.5] [--repeat 20] [--rounds 3]
+    python -m benchmarks.profile_loop [--mesh-width 0.5] [--repeat 20] [--rounds 3]
 
 On the flat spinning web of benchmarks/throughput.py (every element on the slack/taut kink),
 each pass of the production step is called on the same arrays, on 1 and on 2 threads; each
@@ -29,8 +29,8 @@ from pathlib import Path
 import numba
 import numpy as np
 from numba import njit
-from throughput import load_average, machine, spinning_web
 
+from benchmarks.common import load_average, machine, spinning_web
 from spinweb_fe.fe import forces, step
 from spinweb_fe.fe.forces import make_work
 from spinweb_fe.fe.model import choose_dt

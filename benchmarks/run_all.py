@@ -1,7 +1,6 @@
 """All benchmarks, one after the other (``make bench``); results in benchmarks/results/.
 
-    python benchmarks/run_all.py [--only throughput limit ramp feature_cost profile scaling wp
-                                  energy]
+    python -m benchmarks.run_all [--only throughput limit ramp feature_cost profile scaling wp]
                                  [--wait-quiet 30]
 
 - throughput.json: the bare spinning web at W = 2.5 m (3280 elements) and W = 0.5 m
@@ -12,9 +11,11 @@
 - ramp_run.json: cases/paper_ramp_web.toml (10 s at the README's accuracy: cfl 0.3 with 1
   and with 2 elements per segment; frames and results.h5 written) on 2 threads and 1 thread,
   wall time per run;
-- feature_cost.json, profile_loop.json, scaling.json/png, work_precision.json/png,
-  energy_attribution.json/png (where the step's energy error is made; no timing): see those
+- feature_cost.json, profile_loop.json, scaling.json/png, work_precision.json/png: see those
   scripts.
+
+Benchmarks only: the studies (``studies/``, e.g. studies.energy_attribution, where the step's
+energy error is made) and the tools (``tools/``) are run on their own.
 
 The machine is shared: before each part the script waits (at most ``--wait-quiet`` s) for a
 1-minute load below 0.5 and records the load it ran at.
@@ -31,17 +32,17 @@ import tempfile
 import time
 from pathlib import Path
 
-from throughput import load_average, machine, wait_for_quiet
+from benchmarks.common import load_average, machine, wait_for_quiet
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-OUT = HERE / "results"
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results"
 PY = sys.executable
 
 
-def bench(script, *args, env=None):
-    """Run benchmarks/<script> in a fresh process; returns its stdout."""
-    cmd = [PY, str(HERE / script), *map(str, args)]
+def bench(module, *args, env=None):
+    """Run ``python -m benchmarks.<module>`` in a fresh process from the repository root;
+    returns its stdout."""
+    cmd = [PY, "-m", f"benchmarks.{module}", *map(str, args)]
     print("$", " ".join(cmd[1:]), flush=True)
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env, check=True)
     sys.stderr.write(r.stderr[-2000:])
@@ -54,7 +55,7 @@ def throughput(wait):
         for w, end in ((2.5, end25), (0.5, end05)):
             for nt in (1, 2):
                 load = wait_for_quiet(max_wait=wait)
-                r = json.loads(bench("throughput.py", "--problem", problem, "--mesh-width", w,
+                r = json.loads(bench("throughput", "--problem", problem, "--mesh-width", w,
                                      "--end", end, "--threads", nt, "--repeat", 5, "--json"))
                 r["load_1min_at_start"] = load
                 rows.append(r)
@@ -64,7 +65,7 @@ def throughput(wait):
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         cold = {}
         for nt in (1, 2):
-            r = json.loads(bench("throughput.py", "--mesh-width", 2.5, "--end", 0.01,
+            r = json.loads(bench("throughput", "--mesh-width", 2.5, "--end", 0.01,
                                  "--threads", nt, "--json", env=env))
             cold[str(nt)] = r["compile_s"]
     out = {"machine": machine(), "runs": rows, "cold_compile_s": cold,
@@ -105,8 +106,7 @@ def ramp(wait):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling",
-             "wp", "energy"]
+    parts = ["throughput", "limit", "ramp", "feature_cost", "profile", "scaling", "wp"]
     ap.add_argument("--only", nargs="+", choices=parts, default=parts)
     ap.add_argument("--wait-quiet", type=float, default=30.0,
                     help="seconds to wait for a 1-minute load below 0.5 before each part")
@@ -121,12 +121,10 @@ def main(argv=None):
             ramp(wait)
         else:
             wait_for_quiet(max_wait=wait)
-            script = {"limit": "limit_ratio.py",
-                      "feature_cost": "feature_cost.py",
-                      "profile": "profile_loop.py",
-                      "scaling": "scaling.py", "wp": "work_precision.py",
-                      "energy": "energy_attribution.py"}[part]
-            print(bench(script), flush=True)
+            module = {"limit": "limit_ratio", "feature_cost": "feature_cost",
+                      "profile": "profile_loop", "scaling": "scaling",
+                      "wp": "work_precision"}[part]
+            print(bench(module), flush=True)
 
 
 if __name__ == "__main__":

@@ -1,11 +1,11 @@
 """Run time against element count and against simulated time; memory per element.
 
-    python benchmarks/scaling.py [--widths 5 2.5 1.25 1 0.5 0.25] [--threads 1 2]
+    python -m benchmarks.scaling [--widths 5 2.5 1.25 1 0.5 0.25] [--threads 1 2]
 
 The flat spinning web of benchmarks/throughput.py (S = 100 m) at several mesh widths, each
 run for about ``--updates`` element-updates (steps = updates / elements), fastest of
 ``--repeat``; then the W = 2.5 m web for growing simulated times. Memory per element: the
-arrays the step loop touches (model, state, force buffers; throughput.model_bytes) and the
+arrays the step loop touches (model, state, force buffers; benchmarks.common.model_bytes) and the
 peak of Python-traced allocations (tracemalloc: numpy arrays included) while building the
 model and running it. Writes benchmarks/results/scaling.json and scaling.png.
 """
@@ -18,8 +18,8 @@ import math
 import tracemalloc
 from pathlib import Path
 
-from throughput import machine, measure, model_bytes, spinning_web
 
+from benchmarks.common import machine, measure, model_bytes, spinning_web
 from spinweb_fe.fe.model import choose_dt
 from spinweb_fe.run.loop import Schedule, simulate
 

@@ -1,7 +1,7 @@
 """What limits the time step of the paper's Zylon cases: energy balance and error against a
 refined run over the CFL fraction (issue: fewer steps).
 
-    python benchmarks/step_limit.py [--cases paper_free_web ...] [--end 2.0]
+    python -m benchmarks.step_limit [--cases paper_free_web ...] [--end 2.0]
 
 For each case (held coil, the case's own mesh and damping), runs time.cfl = 0.1 (the
 reference) and 0.2 (the default) ... 0.9, each to ``--end`` seconds (frames off), and
@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from throughput import machine
 
+from benchmarks.common import machine
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import RunError

@@ -1,6 +1,6 @@
 """Run time against error (work-precision) over elements per segment and CFL fraction.
 
-    python benchmarks/work_precision.py [--problem tethers web] [--quick] [--rescore]
+    python -m benchmarks.work_precision [--problem tethers web] [--quick] [--rescore]
 
 (a) ``tethers``: cases/paper_free_arms_stiff.toml (4 coiled tethers, 1000x stiff cable, free
     hub at 8 pi rad/s) shortened to 0.5 s (deployment to full length at ~0.3 s and the first
@@ -35,8 +35,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from throughput import load_average, machine
 
+from benchmarks.common import load_average, machine
 from spinweb_fe.analytic import solve as analytic
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare

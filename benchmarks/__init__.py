@@ -1,0 +1,1 @@
+"""Speed benchmarks of the step loop (run each as ``python -m benchmarks.<name>``)."""
