@@ -1,7 +1,7 @@
 """Validation of the held coil, the rate payout and the two-stage deployment (issue: the stowed
 coil), with the numbers quoted by docs/validation.md.
 
-    .venv/bin/python benchmarks/validate_coil.py [--only eq7,rate,web,ramp]
+    .venv/bin/python -m studies.validate_coil [--only eq7,rate,web,ramp]
 
 Studies (each writes ``benchmarks/results/validation/coil_<study>.json`` and its figure
 ``docs/img/coil_<study>.png``):
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe import case as case_mod
-from spinweb_fe.analytic.compare import analytic_twin, error_table, fe_run, first_pivot, web_params
+from spinweb_fe.analytic.compare import analytic_twin, fe_run, first_pivot, web_params
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.post.plot import plot_histories
 

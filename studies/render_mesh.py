@@ -1,8 +1,8 @@
 """Render the paper web's mesh states to docs/img/*.png (plan view, coloured by arm).
 
-    .venv/bin/python docs/render_mesh.py [--matplotlib]
+    .venv/bin/python -m studies.render_mesh [--matplotlib]
 
-    .venv/bin/python docs/render_mesh.py --ties axes --suffix _axes   # the 4-node ties
+    .venv/bin/python -m studies.render_mesh --ties axes --suffix _axes   # the 4-node ties
 
 Uses pyvista off-screen; falls back to matplotlib when no OpenGL context is available
 (or with ``--matplotlib``). Writes mesh_flat.png (deployed), mesh_star.png (star fold
@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.case.scene import build_mesh
 from meshgen.fold import star_fold
 from spinweb_fe.case import load
+from spinweb_fe.case.scene import build_mesh
 
-HERE = Path(__file__).resolve().parent
+ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("render_mesh")
 
 
@@ -89,7 +89,7 @@ def render_matplotlib(mesh, pos, path, title):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", default=str(HERE.parent / "cases" / "paper_free_web.toml"))
+    ap.add_argument("--case", default=str(ROOT / "cases" / "paper_free_web.toml"))
     ap.add_argument("--matplotlib", action="store_true", help="skip pyvista")
     ap.add_argument("--ties", choices=("frame", "axes"), default=None,
                     help="override fold.ties (default: the case's, i.e. frame)")
@@ -102,7 +102,7 @@ def main(argv=None):
     ties = case.fold.ties
     folded = build_mesh(case)
     star = star_fold(folded)
-    out = HERE / "img"
+    out = ROOT / "docs" / "img"
     out.mkdir(exist_ok=True)
     w = case.web
     jobs = [(f"mesh_flat{args.suffix}.png", folded.node_ref,

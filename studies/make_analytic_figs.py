@@ -1,6 +1,6 @@
 """Figures of docs/analytic.md: printed vs consistent model, and the paper's Fig. 8 study.
 
-Run from the project root: ``.venv/bin/python docs/make_analytic_figs.py``. Writes
+Run from the project root: ``.venv/bin/python -m studies.make_analytic_figs``. Writes
 docs/img/analytic_free.png, analytic_ramp.png, analytic_drift.png and analytic_fig8.png and
 prints the numbers quoted in docs/analytic.md.
 """

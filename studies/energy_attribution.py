@@ -2,7 +2,7 @@
 (issue: fewer steps). An exact bookkeeping, element by element, of the central-difference
 step.
 
-    python benchmarks/energy_attribution.py [--end 2.0] [--replot]
+    python -m studies.energy_attribution [--end 2.0] [--replot]
 
 Why it is exact: with half-step velocities, the kinetic energy a step adds is
 ``sum_i F_i(x_n) . (x_{n+1} - x_{n-1}) / 2``, and each element's force is the gradient of its
@@ -38,11 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import machine
-from benchmarks.energy_drift import straight_tethers
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.run.loop import _Chunks, start
+from studies.energy_drift import straight_tethers
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "energy_attribution.json"

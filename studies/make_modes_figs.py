@@ -2,7 +2,7 @@
 2 pi and 8 pi rad/s with 0, 10 and 50 kg corners, its lowest mode shapes, design sweeps, and
 the convergence of the spinning string.
 
-Run from the project root: ``.venv/bin/python docs/make_modes_figs.py`` (about 30 s on one
+Run from the project root: ``.venv/bin/python -m studies.make_modes_figs`` (about 30 s on one
 core). Writes docs/img/modes_shapes.png, modes_sweep_omega.png, modes_sweep_tip_mass.png and
 modes_string.png and prints the tables quoted in docs/modes.md.
 """

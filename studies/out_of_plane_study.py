@@ -1,8 +1,8 @@
 """Out of the plane: the paper's web deployments perturbed out of their plane
 (docs/out_of_plane.md).
 
-    python benchmarks/out_of_plane_study.py [--out out/out_of_plane] [--rerun] [--jobs N]
-                                            [--only runs|analyse|figs ...]
+    python -m studies.out_of_plane_study [--out out/out_of_plane] [--rerun] [--jobs N]
+                                         [--only runs|analyse|figs ...]
 
 For the free, torque-feedback and spin-ramp deployments of the paper's web
 (``cases/paper_{free,feedback,ramp}_web.toml``, held coil, their full end times, default
@@ -61,13 +61,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from spinweb_fe.io.h5 import history_of
+from spinweb_fe.post.plot import out_of_plane_columns
+from spinweb_fe.record.energy import balance_error
 
-from spinweb_fe.io.h5 import history_of  # noqa: E402
-from spinweb_fe.post.plot import out_of_plane_columns  # noqa: E402
-from spinweb_fe.record.energy import balance_error  # noqa: E402
-
+ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results" / "out_of_plane.json"
 IMG = ROOT / "docs" / "img"
 PY = sys.executable

@@ -1,7 +1,7 @@
 """Would the cables hold? The paper's deployments with Zylon's strength (docs/strength.md).
 
-    python benchmarks/strength_study.py [margins] [scan] [rupture] [figs] [--skip-stiff]
-                                        [--cases NAME ...] [--out out/strength]
+    python -m studies.strength_study [margins] [scan] [rupture] [figs] [--skip-stiff]
+                                     [--cases NAME ...] [--out out/strength]
 
 Zylon AS (Toyobo, "PBO fiber ZYLON" technical information, 2005): tensile strength 5.8 GPa,
 tensile modulus 180 GPa, so the linear-elastic cable breaks at eps_f = 5.8 / 180 = 3.22 %

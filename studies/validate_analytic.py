@@ -2,7 +2,7 @@
 
 One command runs the whole study (about 10 minutes of wall time on one core)::
 
-    .venv/bin/python benchmarks/validate_analytic.py [--only tethers,web,tri,effects,figs]
+    .venv/bin/python -m studies.validate_analytic [--only tethers,web,tri,effects,figs]
 
 It writes ``benchmarks/results/validation/*.json`` (error tables, timings), overlaid
 four-panel plots ``benchmarks/results/validation/*.png`` and the figures quoted by

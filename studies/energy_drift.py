@@ -1,7 +1,7 @@
 """Where the energy error of the paper's Zylon cases comes from at larger steps (issue: fewer
 steps), and what a slack/taut transition consistent with the step does to it.
 
-    python benchmarks/energy_drift.py [--end 2.0] [--replot]
+    python -m studies.energy_drift [--end 2.0] [--replot]
 
 1. One-sided spring impact (pure numpy): a unit mass at unit speed runs into a spring that
    pushes only when compressed (the tension-only law's kink), leapfrog with step h; the

@@ -1,0 +1,1 @@
+"""Studies that write the figures and numbers of docs/ (``python -m studies.<name>``)."""
