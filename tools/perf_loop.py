@@ -1,6 +1,6 @@
 """Run a case's step loop under Linux ``perf`` with numba's compiled functions named.
 
-    perf record -F 4000 -o perf.data python benchmarks/perf_loop.py cases/paper_free_arms.toml 10
+    perf record -F 4000 -o perf.data python -m tools.perf_loop cases/paper_free_arms.toml 10
     perf report -i perf.data --no-children --sort sym -g none
 
 numba's JIT code has no symbols, so perf shows bare addresses. After compiling (or loading)

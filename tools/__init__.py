@@ -1,0 +1,1 @@
+"""Developer tools: regression, A/B of two checkouts, perf map (``python -m tools.<name>``)."""
