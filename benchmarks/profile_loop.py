@@ -10,8 +10,9 @@ number is the fastest of ``repeat`` calls in the fastest of ``rounds`` interleav
   length/strain/tension loop, the force vectors; also on a record step (strain energy and max
   tension kept per element and summed) and with an axial damper (velocities gathered too);
 - node sums (fe.forces.node_forces): each node's element forces added in element order;
-- node update (fe.step.node_pass): kick and drift, without contact and with the hub contact
-  check of every node (r0 = 0.1 m: no node reaches it, so only the check is priced);
+- node update (fe.axis.axis_nodes, the fixed-axis node pass): kick and drift, without contact
+  and with the hub contact check of every node (r0 = 0.1 m: no node reaches it, so only the
+  check is priced);
 - the whole step loop (fe.step.advance, one history row per 256 steps) for comparison.
 
 Also reports whether numba emitted packed sqrt and divide (vsqrtpd / vdivpd) for the element
@@ -32,7 +33,9 @@ from numba import njit
 
 from benchmarks.common import load_average, machine, spinning_web
 from spinweb_fe.fe import forces, step
+from spinweb_fe.fe.axis import AxisKick, NodeMotion, axis_nodes
 from spinweb_fe.fe.forces import make_work
+from spinweb_fe.fe.layout import ROW_WIDTH, SLOTS
 from spinweb_fe.fe.model import choose_dt
 
 OUT = Path(__file__).resolve().parent / "results" / "profile_loop.json"
@@ -78,6 +81,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     model, law, state0 = spinning_web(args.mesh_width)
     k = model.kernel
+    axis, body = model.hub_kind  # a fixed axis: body is None
     m = model.n_elems
     dt = choose_dt(model, 0.9)
     damped = k.elements._replace(cdamp=k.elements.cdamp + 1.0, damped=True)
@@ -90,8 +94,9 @@ def main(argv=None) -> int:
         st = state0.copy()
         pos, vel = st.node_pos, st.node_vel
         sums = np.zeros(5)
-        mv = step.NodeMotion(st.node_pos, st.node_vel, st.node_mass, st.node_inv_mass)
-        j_eff = float(st.hub.inertia[0])
+        mv = NodeMotion(st.node_pos, st.node_vel, st.node_mass, st.node_inv_mass)
+        # the hub at rest (omega_{n-1/2} = omega_{n+1/2} = 0), as the pass ran before
+        kick = AxisKick(0.0, 0.0, 0.0, float(st.hub.inertia[0]))
         parts = {
             "element pass": lambda: element_pass(k.elements, k.links, pos, vel, work, False, th),
             "element pass, record step": lambda: element_pass(k.elements, k.links, pos, vel,
@@ -99,25 +104,25 @@ def main(argv=None) -> int:
             "element pass, damped": lambda: element_pass(damped, k.links, pos, vel, work,
                                                          False, th),
             "node sums": lambda: node_sums(k.links, work, th),
-            "node update": lambda: step.node_pass(k.nodes, k.hub, mv, j_eff, work, 0.0, 0.0, dt,
-                                                  sums, False, th),
-            "node update, contact check": lambda: step.node_pass(
-                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, mv, j_eff, work, 0.0,
-                0.0, dt, sums, False, th),
+            "node update": lambda: axis_nodes(k.nodes, k.hub, mv, kick, work, dt, sums, False,
+                                              th),
+            "node update, contact check": lambda: axis_nodes(
+                k.nodes._replace(contact=k.nodes.inv_mass > 0), contact_hub, mv, kick, work, dt,
+                sums, False, th),
         }
         best = {name: np.inf for name in parts}
         for _ in range(args.rounds):
             for name, fn in parts.items():
                 best[name] = min(best[name], best_of(fn, args.repeat))
-        rec = step.Recording(256, np.zeros(0, np.int64), np.zeros((2, len(step.REC_COLUMNS))),
+        rec = step.Recording(256, np.zeros(0, np.int64), np.zeros((2, ROW_WIDTH)),
                              np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), np.zeros((2, 0, 5)),
-                             np.zeros((2, 0)))
+                             np.zeros((2, 0)), SLOTS)
         loop = np.inf
         for _ in range(args.rounds):
             st2 = state0.copy()
-            step.advance(k, law.kernel, st2, work, rec, dt, 1, None, th)
+            step.advance(k, axis, body, law.kernel, st2, work, rec, dt, 1, None, th)
             t0 = time.perf_counter()
-            step.advance(k, law.kernel, st2, work, rec, dt, 200, None, th)
+            step.advance(k, axis, body, law.kernel, st2, work, rec, dt, 200, None, th)
             loop = min(loop, (time.perf_counter() - t0) / 200)
         best["whole step (advance)"] = loop
         results[f"{nt}_thread"] = {name: 1e9 * s / m for name, s in best.items()}
