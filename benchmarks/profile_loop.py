@@ -35,7 +35,7 @@ from benchmarks.common import load_average, machine, spinning_web
 from spinweb_fe.fe import forces, step
 from spinweb_fe.fe.axis import AxisKick, NodeMotion, axis_nodes
 from spinweb_fe.fe.forces import make_work
-from spinweb_fe.fe.layout import ROW_WIDTH, SLOTS
+from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS
 from spinweb_fe.fe.model import choose_dt
 
 OUT = Path(__file__).resolve().parent / "results" / "profile_loop.json"
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
             for name, fn in parts.items():
                 best[name] = min(best[name], best_of(fn, args.repeat))
         rec = step.Recording(256, np.zeros(0, np.int64), np.zeros((2, ROW_WIDTH)),
-                             np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), np.zeros((2, 0, 5)),
+                             np.zeros((2, 0, 3)), np.zeros((2, 0, 3)), np.zeros((2, 0, len(ARM))),
                              np.zeros((2, 0)), SLOTS)
         loop = np.inf
         for _ in range(args.rounds):
