@@ -42,7 +42,7 @@ from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.run.loop import _Chunks, start
-from studies.energy_drift import straight_tethers
+from studies.energy_drift import row_balance, straight_tethers
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "energy_attribution.json"
@@ -91,9 +91,9 @@ def attribute(text, sets, cfl, end, samples=200):
     for n in range(nsteps):
         kinematic = state.node_inv_mass == 0.0
         chunks.advance(state, dt, 1)
-        row = chunks.rec.table[0]  # KE, SE, torque work, damping and contact dissipation
-        balance.append(row[4] + row[5] - row[6] + row[7] + row[8])
-        scale_w = max(scale_w, abs(row[6]))
+        b, w = row_balance(chunks.rec.table[0])  # KE + SE - W + D, the torque work W
+        balance.append(b)
+        scale_w = max(scale_w, abs(w))
         d_next = state.node_pos[j] - state.node_pos[i]
         u_next, _, l_next = strain_energy(d_next, rest, ea)
         taut_next = l_next > rest

@@ -36,6 +36,7 @@ import numpy as np
 from benchmarks.common import machine, spinning_web
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
+from spinweb_fe.fe.layout import SLOTS
 from spinweb_fe.fe.model import choose_dt
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import balance_error
@@ -125,6 +126,15 @@ def solver_table(end):
     return rows
 
 
+def row_balance(row):
+    """(KE + SE - W + D, W) [J] of a scalar row of the step loop's table (fe.layout's slots):
+    W the torque work, D the damping and contact dissipation."""
+    sr, e, term = SLOTS.row, SLOTS.row.energy, SLOTS.term
+    w = row[e + term.torque_work]
+    return (row[sr.kinetic_energy] + row[sr.strain_energy] - w
+            + row[e + term.damping_dissipation] + row[e + term.contact_dissipation]), w
+
+
 def release_windows(cfl, end=0.2):
     """Energy change of the coiled tethers in the 4 steps after each release vs elsewhere."""
     cs = case_mod.load(ROOT / "cases" / "paper_free_arms.toml",
@@ -136,8 +146,7 @@ def release_windows(cfl, end=0.2):
     for _ in range(int(end / dt)):
         before = int(state.coil.front.sum())
         chunks.advance(state, dt, 1)
-        row = chunks.rec.table[0]  # KE + SE - W + D (damping and contact)
-        energy.append(row[4] + row[5] - row[6] + row[7] + row[8])
+        energy.append(row_balance(chunks.rec.table[0])[0])  # KE + SE - W + D
         releases.append(int(state.coil.front.sum()) - before)
     de = np.diff(energy) / energy[0]
     rel = np.array(releases[1:]) > 0

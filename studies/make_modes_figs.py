@@ -184,7 +184,7 @@ def stiff_comparison():
 def main():
     IMG.mkdir(parents=True, exist_ok=True)
     results = study_table()
-    for hub in ("driven", "free"):
+    for hub in ("driven", "coasting"):
         md = analyse(paper_case(10.0), 8 * math.pi, 8, hub).modes
         print(f"8 pi, 10 kg, hub {hub}: " + ", ".join(
             f"{f:.4g} {k[0]}" for f, k in zip(md.frequency, md.kind)) + " rad/s")
