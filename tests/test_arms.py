@@ -140,7 +140,7 @@ def test_held_coil_leaves_tangentially_within_one_level_of_its_front():
     for front in (19.0, 21.5):
         tr = ArmTracker(mesh, R0)
         tr.prev_ad[:] = 20.0 / R0
-        row = np.array([[[front, front + 1.0, 1.0, 0.0, np.nan]]])
+        row = np.array([[[front, front + 1.0, 1.0, 0.0, np.nan, 0.0, 0.0]]])
         L, phi, _, sd = tr.update(tip_rows([_tangent_tip(20.0, H - 20.0)]),
                                   np.zeros((1, 1, 3)), np.zeros(1), named(row, ARM))
         assert sd[0, 0] == pytest.approx(20.0, rel=1e-12)
@@ -158,7 +158,7 @@ def test_an_arm_hanging_from_its_front_pivots_about_it_and_wraps_over_its_coil()
     tr = ArmTracker(mesh, R0)
     tr.prev_ad[:] = 18.0 / R0
     s_f, l = 18.0, 25.0
-    row = np.array([[[s_f, 19.0, 1.0, 1.0, np.nan]]])
+    row = np.array([[[s_f, 19.0, 1.0, 1.0, np.nan, 0.0, 0.0]]])
     L, phi, _, sd = tr.update(tip_rows([_pivot_tip(s_f, -1.2, l)]), np.zeros((1, 1, 3)),
                               np.zeros(1), named(row, ARM))
     assert sd[0, 0] == s_f and L[0, 0] == pytest.approx(l, rel=1e-12)

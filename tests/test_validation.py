@@ -15,7 +15,7 @@ import pytest
 
 from spinweb_fe import case as case_mod
 from spinweb_fe.analytic import compare as V
-from spinweb_fe.analytic.solve import params_from_case
+from spinweb_fe.analytic.models import params_from_case
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.cli import main
 

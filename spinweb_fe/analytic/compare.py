@@ -10,8 +10,8 @@ import numpy as np
 
 from meshgen.mesh import POLYGON_TAN
 from meshgen.registry import COILED_FOLDS, cable_length_per_area
-from spinweb_fe.analytic.models import HALF_PI, ArmParams
-from spinweb_fe.analytic.solve import integrate, params_from_case, payout_from_case
+from spinweb_fe.analytic.models import HALF_PI, ArmParams, params_from_case
+from spinweb_fe.analytic.solve import devices_from_case, integrate
 from spinweb_fe.case.scene import control_from_case, prepare
 from spinweb_fe.fe.model import build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
@@ -107,10 +107,11 @@ def analytic_twin(case, params=None, t_end=None, model="consistent"):
     (history, AnalyticResult)."""
     p = params or params_from_case(case)
     coiled = case.fold.pattern in COILED_FOLDS
+    payout, brake = devices_from_case(case)
     res = integrate(p, control_from_case(case), model=model, t_end=t_end or case.time.end,
                     history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
                     omega_init=case.initial.omega, spin=case.initial.spin,
-                    payout=payout_from_case(case))
+                    payout=payout, brake=brake)
     return res.history, res
 
 

@@ -25,6 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from meshgen.registry import TOPOLOGIES, cable_length_per_area
+
 MODELS = ("printed", "consistent")
 HALF_PI = 0.5 * math.pi
 
@@ -225,3 +227,34 @@ def tip_rate(p: ArmParams, phi, omega, psi, coiled) -> float:
     r0 = p.r0
     h = r0 * r0 * omega + r0 * L * c * (omega + psi) + L * L * psi
     return h / (r0 * r0 + L * L + 2.0 * r0 * L * c)
+
+
+def params_from_case(case, tether_mass: bool = True) -> ArmParams:
+    """Map a case to the model parameters.
+
+    Tether scene: n = tethers.count, H = tethers.length, tip mass, and (if ``tether_mass``)
+    the tether's own mass: ``tethers.arm_mass`` with the Eq. 7 profile if given, else
+    rho A H as a uniform arm mass (the FE tether has line density rho A). Web scene: n = 4 (square outlines) or 3 (triangular), H = side/2, and the web
+    mass m_w = rho_A x web area with the paper's Eq. 7 profile, m_w/n per arm; rho_A is
+    web.areal_density or the continuum value rho A lambda of the mesh (lambda = 2/t for a
+    square mesh). The hub cut-out is not modelled (see docs/analytic.md).
+    """
+    hub = case.hub
+    if case.scene == "tethers":
+        t = case.tethers
+        if t.arm_mass is not None:  # the paper's arm: Eq. 7 density, zero at the tip
+            m_lin = t.arm_mass if tether_mass else 0.0
+            return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
+                             m_tip=case.tip_mass.mass, m_lin=m_lin)
+        m_uni = case.cable.density * case.cable.area * t.length if tether_mass else 0.0
+        return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
+                         m_tip=case.tip_mass.mass, m_uni=m_uni)
+    w = case.web
+    rho_a = w.areal_density
+    if rho_a is None:
+        rho_a = case.cable.density * case.cable.area * cable_length_per_area(w.topology,
+                                                                             w.mesh_width)
+    n = TOPOLOGIES[w.topology].corners
+    area = math.sqrt(3.0) / 4.0 * w.side ** 2 if n == 3 else w.side ** 2
+    return ArmParams(n=n, H=0.5 * w.side, r0=hub.radius, J_hub=hub.inertia,
+                     m_tip=case.tip_mass.mass, m_lin=rho_a * area / n)

@@ -103,3 +103,59 @@ def tip_rate(p: ArmParams, phi, omega, psi, L, Ld, w) -> float:
     cb, sb = math.cos(beta), math.sin(beta)
     h = r0 * r0 * u + r0 * Ld * sb + r0 * L * (psi + u) * cb + L * L * psi
     return h / (r0 * r0 + L * L + 2.0 * r0 * L * cb)
+
+
+class Brake(NamedTuple):
+    """A brake law: force ``force`` [N] at times ``times`` [s], linear between the points
+    and constant outside them."""
+
+    times: np.ndarray
+    force: np.ndarray
+
+    def at(self, t: float) -> float:
+        """The brake force [N] at time t."""
+        return float(np.interp(t, self.times, self.force))
+
+    def breaks(self, t_end: float) -> list:
+        """The table's times inside (0, t_end): the force's slope changes there."""
+        return [float(t) for t in self.times if 0.0 < t < t_end]
+
+
+def line_tension(p: ArmParams, phi, omega, psi, omega_dot, L, Ld, Ldd, w) -> float:
+    """The line's tension [N] just outside D: minus the along-arm force on the free part
+    less the momentum its entering material brings, N = m_f r0 (u^2 cos beta - u' sin beta)
+    - m_f L'' + S Psi^2 (u' = omega' + w L'' / r0): what the reel or the brake holds."""
+    beta, u, m_f, S, I, _ = _kin(p, phi, omega, L, Ld, w)
+    ud = omega_dot + w * Ldd / p.r0
+    return m_f * p.r0 * (u * u * math.cos(beta) - ud * math.sin(beta)) - m_f * Ldd + S * psi * psi
+
+
+def slip_rows(p: ArmParams, phi, omega, psi, L, Ld, w, force):
+    """(A (3, 3), b (3,)) of the slipping brake: A (omega', Psi', L'') = b + (M, 0, 0):
+    the total angular momentum (K' = M), the moment of momentum of the free part about the
+    moving D (H_D' + v_D x p = 0) and the line's tension at D equal to the brake ``force``,
+    each with the L'' the law no longer gives (docs/analytic.md)."""
+    beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
+    n, r0 = p.n, p.r0
+    cb, sb = math.cos(beta), math.sin(beta)
+    r1 = n * (r0 * rho0 * Ld * Ld * (w + sb) + 2.0 * r0 * m_f * Ld * psi * cb
+              - r0 * S * sb * (psi * psi - u * u) + 2.0 * S * Ld * psi)
+    A = np.array([[p.J0 + n * r0 * S * cb, n * (r0 * S * cb + I),
+                   n * (r0 * m_f * (w + sb) + w * S * cb)],
+                  [r0 * S * cb, I, w * S * cb],
+                  [m_f * r0 * sb, 0.0, m_f * (1.0 + w * sb)]])
+    b = np.array([-r1, -(r0 * S * u * u * sb + 2.0 * S * Ld * psi),
+                  m_f * r0 * u * u * cb + S * psi * psi - force])
+    return A, b
+
+
+def slip_accelerations(A, b, torque=None, omega_dot=None):
+    """(omega', Psi', L'', M) of :func:`slip_rows`, given the hub torque M or its
+    acceleration omega'."""
+    if omega_dot is None:
+        x = np.linalg.solve(A, b + np.array([torque, 0.0, 0.0]))
+        return x[0], x[1], x[2], torque
+    Ldd = (b[2] - A[2, 0] * omega_dot) / A[2, 2]
+    psi_dot = (b[1] - A[1, 0] * omega_dot - A[1, 2] * Ldd) / A[1, 1]
+    M = A[0, 0] * omega_dot + A[0, 1] * psi_dot + A[0, 2] * Ldd - b[0]
+    return omega_dot, psi_dot, Ldd, M

@@ -1,6 +1,6 @@
 """The paper's analytical deployment model (Eqs. 4-8): case mapping and integration.
 
-:func:`params_from_case` maps a tether or web scene to :class:`ArmParams`;
+:func:`spinweb_fe.analytic.models.params_from_case` maps a tether or web scene to the parameters;
 :func:`integrate` integrates the model with ``scipy.integrate.solve_ivp`` (DOP853, tight
 tolerances), switching exactly between the coiled and pivoting regimes at the events
 phi = +-pi/2, and samples the ``/history`` datasets of :mod:`spinweb_fe.record.history`
@@ -20,14 +20,24 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from meshgen.registry import COILED_FOLDS, TOPOLOGIES, cable_length_per_area
+from meshgen.registry import COILED_FOLDS
+from spinweb_fe.analytic import braking
 from spinweb_fe.analytic import payout as pay_mod
-from spinweb_fe.analytic.models import (HALF_PI, MODELS, ArmParams, accelerations, invariants,
-                                        root_tension, solve_rows, tip_rate)
-from spinweb_fe.analytic.payout import Payout
+from spinweb_fe.analytic.models import (
+    HALF_PI,
+    MODELS,
+    ArmParams,
+    accelerations,
+    invariants,
+    params_from_case,
+    root_tension,
+    solve_rows,
+    tip_rate,
+)
+from spinweb_fe.analytic.payout import Brake, Payout
 from spinweb_fe.case.scene import control_from_case
-from spinweb_fe.fe.payout import PAYOUTS, payout_table
 from spinweb_fe.fe.control import Control
+from spinweb_fe.fe.payout import PAYOUTS, payout_table
 
 log = logging.getLogger(__name__)
 
@@ -62,37 +72,6 @@ class AnalyticResult:
     switches: list = field(default_factory=list)   # (time, phi, new regime)
     stopped: str = ""                               # non-empty if stopped before t_end
     info: dict = field(default_factory=dict)
-
-
-def params_from_case(case, tether_mass: bool = True) -> ArmParams:
-    """Map a case to the model parameters.
-
-    Tether scene: n = tethers.count, H = tethers.length, tip mass, and (if ``tether_mass``)
-    the tether's own mass: ``tethers.arm_mass`` with the Eq. 7 profile if given, else
-    rho A H as a uniform arm mass (the FE tether has line density rho A). Web scene: n = 4 (square outlines) or 3 (triangular), H = side/2, and the web
-    mass m_w = rho_A x web area with the paper's Eq. 7 profile, m_w/n per arm; rho_A is
-    web.areal_density or the continuum value rho A lambda of the mesh (lambda = 2/t for a
-    square mesh). The hub cut-out is not modelled (see docs/analytic.md).
-    """
-    hub = case.hub
-    if case.scene == "tethers":
-        t = case.tethers
-        if t.arm_mass is not None:  # the paper's arm: Eq. 7 density, zero at the tip
-            m_lin = t.arm_mass if tether_mass else 0.0
-            return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
-                             m_tip=case.tip_mass.mass, m_lin=m_lin)
-        m_uni = case.cable.density * case.cable.area * t.length if tether_mass else 0.0
-        return ArmParams(n=t.count, H=t.length, r0=hub.radius, J_hub=hub.inertia,
-                         m_tip=case.tip_mass.mass, m_uni=m_uni)
-    w = case.web
-    rho_a = w.areal_density
-    if rho_a is None:
-        rho_a = case.cable.density * case.cable.area * cable_length_per_area(w.topology,
-                                                                             w.mesh_width)
-    n = TOPOLOGIES[w.topology].corners
-    area = math.sqrt(3.0) / 4.0 * w.side ** 2 if n == 3 else w.side ** 2
-    return ArmParams(n=n, H=0.5 * w.side, r0=hub.radius, J_hub=hub.inertia,
-                     m_tip=case.tip_mass.mass, m_lin=rho_a * area / n)
 
 
 def start_state(p: ArmParams, control: Control, coiled: bool, wrap: str, omega_init: float,
@@ -167,17 +146,29 @@ def _release(model, p, control, t, y):
     return math.copysign(1.0, phi) * (pd - wd)
 
 
-def _rhs_factory(model, p, control, regime, pay, w):
+def _rhs_factory(model, p, control, regime, pay, w, brake=None):
+    if regime in braking.REGIMES:
+        return braking.rhs_factory(p, control, regime, brake, w)
+    tail = [] if brake is None else [0.0, 0.0]  # a brake's (L, L') wait in its state
+
     def rhs(t, y):
         omega_dot, psi_dot, M = _accel(model, p, control, regime, t, y[1], y[2], y[3], pay, w)
-        # y = theta, phi, omega, Psi, torque work W, torque impulse P
-        return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[2], M]
+        # y = theta, phi, omega, Psi, torque work W, torque impulse P (, L, L')
+        return [y[2], y[3] - y[2], omega_dot, psi_dot, M * y[2], M, *tail]
     return rhs
 
 
-def _events(model, p, control, regime, phi_now, L_min, pay, w, t_now):
+def _events(model, p, control, regime, phi_now, L_min, pay, w, t_now, brake=None):
     """Terminal events of a regime (their order is their meaning in :func:`integrate`)."""
     sigma = 1.0 if phi_now > 0 else -1.0
+    if regime in braking.REGIMES:
+        return braking.events(p, control, regime, brake, w)
+    if regime == "captured" and brake is not None:
+        def swings(t, y):         # the stick equations swing the arm off its coil
+            wd, pd, _, _ = braking.accel(p, control, "stick", t, y, w, brake)
+            return w * (pd - wd)
+        swings.terminal, swings.direction = True, 1.0
+        return [swings]
     if regime == "captured":
         if pay is not None and _law(pay, p, t_now)[0] < 2.0 * L_min:
             def allowed(t, y):     # the law lets the start-up length out
@@ -234,7 +225,7 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
              history_dt: float, coiled: bool = True, wrap: str = "trailing",
              omega_init: float = 8 * math.pi, spin: str = "all", L0: float | None = None,
              rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853",
-             payout: Payout | None = None) -> AnalyticResult:
+             payout: Payout | None = None, brake: Brake | None = None) -> AnalyticResult:
     """Integrate the model from t = 0 to ``t_end`` and sample the history.
 
     Three regimes, switched exactly by solve_ivp events: ``pivoting`` (|phi| <= pi/2, L = H),
@@ -263,9 +254,12 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
         solve_ivp tolerances; atol applies to angles [rad] and rates [rad/s], the torque
         work and impulse use atol scaled by the initial energy and momentum.
     payout : Payout or None
-        A rate payout (consistent model only): the free length never exceeds the law's;
-        while the law holds it the arm is ``paying`` (:mod:`spinweb_fe.analytic.payout`),
-        and the history gains ``restraint_work``.
+        A reel (consistent model only): the free length never exceeds the law's; while the
+        law holds it the arm is ``paying`` (:mod:`spinweb_fe.analytic.payout`).
+    brake : Brake or None
+        A brake at D (consistent model only; not with a payout): the arm sticks or slips
+        (:mod:`spinweb_fe.analytic.braking`). With a reel or a brake the history gains the
+        device's ``brake_work``, ``brake_tension`` and ``payout_speed`` per arm.
 
     Returns
     -------
@@ -273,8 +267,8 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     """
     if model not in MODELS:
         raise ValueError(f"unknown model '{model}' (valid: {', '.join(MODELS)})")
-    if payout is not None and model != "consistent":
-        raise ValueError("the rate payout is defined for the consistent model only")
+    if (payout is not None or brake is not None) and model != "consistent":
+        raise ValueError("the payout devices are defined for the consistent model only")
     w = 1.0 if wrap == "trailing" else -1.0
     phi0, omega0, psi0, regime = start_state(p, control, coiled, wrap, omega_init, spin, L0,
                                              model)
@@ -290,21 +284,30 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     atol_v = np.array([atol, atol, atol * w_scale, atol * w_scale,
                        atol * max(E0, p.J0 * w_scale ** 2), atol * max(abs(K0), p.J0 * w_scale)])
     y = np.array([0.0, phi0, omega0, psi0, 0.0, 0.0])
+    if brake is not None:  # (L, L') of the brake's regimes
+        y = np.concatenate([y, [L_start, 0.0]])
+        atol_v = np.concatenate([atol_v, [atol * p.H, atol * p.H * w_scale]])
     t, segments, switches, stopped, lost = 0.0, [], [], "", 0.0
     stops = sorted(set(_breaks(control, t_end) + (payout.breaks(t_end) if payout else [])
-                       + [t_end]))
+                       + (brake.breaks(t_end) if brake else []) + [t_end]))
     while t < t_end and not stopped:
         if len(segments) > MAX_SEGMENTS:
             stopped = f"more than {MAX_SEGMENTS} regime switches by t = {t:.6g} s (chattering)"
             break
-        if regime == "captured" and _release(model, p, control, t, y) < 0 and (
+        if regime == "captured" and brake is not None and braking.released(
+                p, control, t, y, w, brake):
+            regime = "stick"
+            switches.append((t, y[1], regime))
+        elif regime == "captured" and brake is None and _release(
+                model, p, control, t, y) < 0 and (
                 payout is None or _law(payout, p, t)[0] >= 2.0 * L_min):
             regime = "coiled"
             switches.append((t, y[1], regime))
         t_stop = next(b for b in stops if b > t)
-        sol = solve_ivp(_rhs_factory(model, p, control, regime, payout, w), (t, t_stop), y,
-                        method=method, rtol=rtol, atol=atol_v, dense_output=True,
-                        events=_events(model, p, control, regime, y[1], L_min, payout, w, t))
+        sol = solve_ivp(_rhs_factory(model, p, control, regime, payout, w, brake), (t, t_stop),
+                        y, method=method, rtol=rtol, atol=atol_v, dense_output=True,
+                        events=_events(model, p, control, regime, y[1], L_min, payout, w, t,
+                                       brake))
         if sol.status < 0:
             stopped = f"solve_ivp failed at t = {sol.t[-1]:.6g} s: {sol.message}"
         segments.append((t, sol.t[-1], sol.sol, regime, lost))
@@ -312,7 +315,11 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
         if sol.status != 1:
             continue
         hit = [i for i, te in enumerate(sol.t_events) if len(te)][0]
-        if regime == "captured":
+        if regime in braking.REGIMES:
+            regime, stopped = braking.switch(regime, hit, t)  # pivoting: beta = phi
+        elif regime == "captured" and brake is not None:
+            regime = "stick"
+        elif regime == "captured":
             if payout is None or _law(payout, p, t)[0] >= 2.0 * L_min:
                 regime = "coiled"
         elif regime == "coiled" and hit == 2:     # the law holds the arm back
@@ -335,7 +342,7 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
             y[1] = math.copysign(HALF_PI, y[1])
             regime = "pivoting" if regime == "coiled" else "coiled"
         switches.append((t, y[1], regime))
-    hist = _sample(model, p, control, segments, history_dt, t_end, payout, w)
+    hist = _sample(model, p, control, segments, history_dt, t_end, payout, w, brake)
     info = {"E0": E0, "K0": K0, "L0": L_start,
             "start_loss": E_init - E0 if E_init else 0.0, "contact_loss": lost}
     if stopped:
@@ -343,12 +350,13 @@ def integrate(p: ArmParams, control: Control, *, model: str = "consistent", t_en
     return AnalyticResult(hist, p, model, switches, stopped, info)
 
 
-def _sample(model, p, control, segments, dt, t_end, pay=None, w=1.0):
+def _sample(model, p, control, segments, dt, t_end, pay=None, w=1.0, brake=None):
     n_out = int(math.floor(t_end / dt + 1e-9)) + 1
     times = np.arange(n_out) * dt
     times = times[times <= segments[-1][1] + 1e-12]
     names = ("hub_angle", "hub_omega", "hub_torque", "kinetic_energy", "torque_work",
-             "angular_momentum", "max_tension", "L", "phi", "tip", "impulse", "lost")
+             "angular_momentum", "max_tension", "L", "phi", "tip", "impulse", "lost",
+             "device", "speed")
     cols = {k: np.empty(len(times)) for k in names}
     k = 0
     for i, (ta, tb, dense, regime, lost) in enumerate(segments):
@@ -356,34 +364,56 @@ def _sample(model, p, control, segments, dt, t_end, pay=None, w=1.0):
         coiled = regime != "pivoting"
         while k < len(times) and (times[k] < tb or (last and times[k] <= tb + 1e-12)):
             tk = min(times[k], tb)
-            theta, phi, omega, psi, work, imp = dense(tk)
-            wd, _, M = _accel(model, p, control, regime, tk, phi, omega, psi, pay, w)
-            if regime == "paying":
-                L, Ld = _law(pay, p, tk)
-                E, K = pay_mod.invariants(p, phi, omega, psi, L, Ld, w)
-                N = pay_mod.tension(p, phi, omega, psi, wd, L, Ld, w)
-                tip = pay_mod.tip_rate(p, phi, omega, psi, L, Ld, w)
+            y = dense(tk)
+            theta, phi, omega, psi, work, imp = y[:6]
+            if regime in braking.REGIMES:
+                M = braking.accel(p, control, regime, tk, y, w, brake)[3]
+                E, K, N, L, Ld, tip = braking.sample(p, control, regime, tk, y, w, brake)
+                vals = (theta, omega, M, E, work, K, N, L, phi, tip, imp, lost, N, Ld)
             else:
-                E, K = invariants(p, phi, omega, psi, coiled)
-                L = p.H - p.r0 * max(0.0, abs(phi) - HALF_PI) if coiled else p.H
-                N = root_tension(p, phi, omega, psi, wd, coiled)
-                tip = tip_rate(p, phi, omega, psi, coiled)
-            vals = (theta, omega, M, E, work, K, N, L, phi, tip, imp, lost)
+                r = _sample_row(model, p, control, regime, tk, y, pay, w, coiled)
+                vals = r[:11] + (lost,) + r[11:]
             for name, v in zip(names, vals):
                 cols[name][k] = v
             k += 1
     n, zeros = p.n, np.zeros(len(times))
-    return {"time": times, "hub_angle": cols["hub_angle"], "hub_omega": cols["hub_omega"],
-            "hub_torque": cols["hub_torque"], "kinetic_energy": cols["kinetic_energy"],
-            "strain_energy": zeros, "torque_work": cols["torque_work"],
-            "damping_dissipation": zeros.copy(), "contact_dissipation": cols["lost"],
-            "angular_momentum": cols["angular_momentum"], "max_tension": cols["max_tension"],
-            "arm_length": np.repeat(cols["L"][:, None], n, axis=1),
-            "arm_angle": np.repeat(cols["phi"][:, None], n, axis=1),
-            "tip_omega": np.repeat(cols["tip"][:, None], n, axis=1),
-            "torque_impulse": (cols["impulse"], "N m s"),
-            **({} if pay is None else {"restraint_work": cols["kinetic_energy"] + cols["lost"]
-                                       - cols["kinetic_energy"][0] - cols["torque_work"]})}
+
+    def per_arm(v):
+        return np.repeat(v[:, None], n, axis=1)
+    out = {"time": times, "hub_angle": cols["hub_angle"], "hub_omega": cols["hub_omega"],
+           "hub_torque": cols["hub_torque"], "kinetic_energy": cols["kinetic_energy"],
+           "strain_energy": zeros, "torque_work": cols["torque_work"],
+           "damping_dissipation": zeros.copy(), "contact_dissipation": cols["lost"],
+           "angular_momentum": cols["angular_momentum"], "max_tension": cols["max_tension"],
+           "arm_length": per_arm(cols["L"]), "arm_angle": per_arm(cols["phi"]),
+           "tip_omega": per_arm(cols["tip"]), "torque_impulse": (cols["impulse"], "N m s")}
+    if pay is not None or brake is not None:  # the device's work: E - E0 - W + losses
+        out["brake_work"] = per_arm((cols["kinetic_energy"] + cols["lost"]
+                                     - cols["kinetic_energy"][0] - cols["torque_work"]) / n)
+        out["brake_tension"] = per_arm(cols["device"])
+        out["payout_speed"] = per_arm(cols["speed"])
+    return out
+
+
+def _sample_row(model, p, control, regime, t, y, pay, w, coiled):
+    """(theta, omega, M, E, W, K, N, L, phi, tip rate, impulse, N at the device, L') of a
+    state of the coiled, captured, pivoting or paying regime."""
+    theta, phi, omega, psi, work, imp = y[:6]
+    wd, _, M = _accel(model, p, control, regime, t, phi, omega, psi, pay, w)
+    if regime == "paying":
+        L, Ld = _law(pay, p, t)
+        E, K = pay_mod.invariants(p, phi, omega, psi, L, Ld, w)
+        N = pay_mod.tension(p, phi, omega, psi, wd, L, Ld, w)
+        tip = pay_mod.tip_rate(p, phi, omega, psi, L, Ld, w)
+        dev = pay_mod.line_tension(p, phi, omega, psi, wd, L, Ld, 0.0, w)
+        return theta, omega, M, E, work, K, N, L, phi, tip, imp, dev, Ld
+    E, K = invariants(p, phi, omega, psi, coiled)
+    L = p.H - p.r0 * max(0.0, abs(phi) - HALF_PI) if coiled else p.H
+    N = root_tension(p, phi, omega, psi, wd, coiled)
+    tip = tip_rate(p, phi, omega, psi, coiled)
+    held = regime == "coiled"  # the coil holds the line at its tangent point
+    speed = -p.r0 * math.copysign(1.0, phi) * (psi - omega) if held else 0.0
+    return theta, omega, M, E, work, K, N, L, phi, tip, imp, N if held else 0.0, speed
 
 
 def drifts(result: AnalyticResult) -> tuple[np.ndarray, np.ndarray]:
@@ -404,7 +434,7 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
     """Map a case, integrate the chosen model to ``time.end`` and return the result."""
     p = params_from_case(case, tether_mass=tether_mass)
     control = control_from_case(case)
-    payout = payout_from_case(case)
+    payout, brake = devices_from_case(case)
     if control.law.prescribes_rate and case.initial.omega != _rate(control, 0.0)[0]:
         log.info("%s starts from its own rate at t = 0: initial.omega = %g is not used",
                  control.law.name, case.initial.omega)
@@ -412,16 +442,30 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
     return integrate(p, control, model=model, t_end=case.time.end,
                      history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
                      omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
-                     rtol=rtol, atol=atol, payout=payout)
+                     rtol=rtol, atol=atol, payout=payout, brake=brake)
 
 
-def payout_from_case(case) -> Payout | None:
-    """The case's payout law (fe.payout.PAYOUTS: the device's paid-out length table), None
-    for a free payout (or a case without a coil)."""
+def devices_from_case(case) -> tuple:
+    """(Payout or None, Brake or None): the case's reel (its paid-out length law) or brake
+    (its force law), fe.payout.PAYOUTS; (None, None) for a free payout or a case without a
+    coil.
+
+    Raises
+    ------
+    ValueError
+        For a gate, which has no analytical counterpart (a latch that does no work).
+    """
     st = case.stowage
-    if st.payout is None or PAYOUTS[st.payout].code == PAYOUTS["free"].code:
-        return None
-    return Payout(*payout_table(dataclasses.asdict(st)))
+    code = None if st.payout is None else PAYOUTS[st.payout].code
+    if code is None or code == PAYOUTS["free"].code:
+        return None, None
+    if code == PAYOUTS["gate"].code:
+        raise ValueError("stowage.payout = 'gate' has no analytical counterpart (a latch "
+                         "that does no work): use 'rate' (a reel) or 'brake'")
+    table = payout_table(dataclasses.asdict(st))
+    if code == PAYOUTS["rate"].code:
+        return Payout(*table), None
+    return None, Brake(*table)
 
 
 def write(path, case, result: AnalyticResult, rtol: float, atol: float):

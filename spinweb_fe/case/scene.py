@@ -20,7 +20,8 @@ from meshgen.tethers import tethers
 from spinweb_fe.case.perturb import (RANDOM, SHAPES, TILT, mode_field, perturbed,
                                      random_field)
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe.coil import BUNDLES, COILS, build_coil
+from spinweb_fe.fe.coil import BUNDLES, COILS
+from spinweb_fe.fe.coil_build import build_coil
 from spinweb_fe.fe.control import Control, make_control
 from spinweb_fe.fe.model import MOTIONS, Model, Nodes, build_model, choose_dt
 from spinweb_fe.fe.payout import PAYOUTS, payout_table
@@ -95,11 +96,11 @@ def model_from_case(case, mesh: Mesh) -> Model:
     free hub, the gravity gradient and an arm's scaled tip mass, if any)."""
     cab, hub, pert = case.cable, case.hub, case.perturbation
     arm_mass = case.tethers.arm_mass if case.scene == "tethers" else None
+    line_density = None if arm_mass is None else eq7_line_density(mesh, arm_mass)
     model = build_model(mesh, cab.youngs_modulus, cab.density, cab.area, cab.damping_ratio,
                         hub_radius=hub.radius, hub_inertia=hub.inertia,
                         hub_friction=hub.friction, hub_transverse=hub.inertia_transverse,
-                        line_density=None if arm_mass is None else eq7_line_density(mesh,
-                                                                                    arm_mass))
+                        line_density=line_density)
     _check_arm(case, mesh)
     if pert.tip_mass_scale != 1.0:
         model = _scale_tip(model, mesh, pert.arm, pert.tip_mass_scale)
@@ -121,9 +122,11 @@ def model_from_case(case, mesh: Mesh) -> Model:
     if pert.delay > 0:
         hold = np.zeros(mesh.n_arms)
         hold[pert.arm] = pert.delay
+    mu = cab.density * cab.area if line_density is None else line_density
     coil = build_coil(mesh, model.elements.nodes, model.nodes.mass, COILS[st.coil].code,
                       (PAYOUTS[st.payout].code, payout_table(dataclasses.asdict(st))),
-                      (BUNDLES[st.bundle].code, st.bundle_release or 0.0), hold)
+                      (BUNDLES[st.bundle].code, st.bundle_release or 0.0), hold,
+                      elem_mass=mu * model.elements.rest_len)
     return dataclasses.replace(model, coil=coil)
 
 

@@ -20,9 +20,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spinweb_fe.fe.coil import gather_bundles, held_moment, scatter_bundles
+from spinweb_fe.fe.coil import gather_bundles, held_moment, place_held, scatter_bundles
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
+from spinweb_fe.fe.payout import (device_target, line_energy, line_pairing, locate_devices,
+                                  move_line)
 from spinweb_fe.fe.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
@@ -104,6 +106,8 @@ def axis_kick(tied_idx, coil, cs, law, pos, force, holding, w_old, j_eff, t, dt)
     tau = moment_of(pos, force, tied_idx)
     if holding:
         tau += held_moment(coil, cs, pos, force)
+        if coil.payout_code >= 2:  # a reel's or brake's line pulls at D (fe.payout)
+            tau += cs.dev_moment[2]
     torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
     return AxisKick(torque, w_old, w_new, j_eff)
 
@@ -378,6 +382,59 @@ def axis_vector_row(hub, coil, cs, nodes, pos, theta, w, j_eff, row, vs):
     row[q + 3] = np.sin(0.5 * theta)
     row[vs.hub_axis + 2] = 1.0
     row[vs.hub_angular_velocity + 2] = w
+
+
+@njit(cache=True)
+def axis_pose(theta, omega):
+    """The pose rows of fe.payout.locate_devices for a hub on the fixed axis at theta
+    turning at omega: R = Rz(theta), the centres at the origin, no velocity there."""
+    pose = np.zeros((7, 3))
+    c, s = np.cos(theta), np.sin(theta)
+    pose[0, 0], pose[0, 1], pose[1, 0], pose[1, 1], pose[2, 2] = c, -s, s, c, 1.0
+    pose[6, 2] = omega
+    return pose
+
+
+@njit(cache=True)
+def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
+    """The reels or brakes of a scene on a fixed axis at the end of a step (fe.payout): each
+    arm's line moves to the device's target, the hub sheds the mass that passes and takes
+    the reaction's moment about the axis (its rate and inertia in ``hs`` change), the held
+    and tied nodes follow; each arm's device work is the change of the energy its update
+    makes (``coil`` None: nothing, at compile time)."""
+    if coil is None:
+        return
+    w, j = hs.rate[0], hs.inertia[0]
+    pose = axis_pose(hs.angle[0], w)
+    locate_devices(coil, cs, pose)
+    out = np.zeros(7)
+    steps = np.empty((coil.test_elem.shape[0] + 1, 3))
+    for k in range(coil.arm_ptr.shape[0] - 1):
+        lev = coil.arm_ptr[k] + cs.front[k]
+        if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
+            continue
+        if cs.front[k] > 0:
+            s_new = device_target(coil, cs, k, lev, elems, mv.pos, pose, t)
+            if s_new >= cs.s_dev[k]:
+                cs.dev_speed[k] = 0.0
+                continue
+        else:
+            s_new = cs.s_dev[k]
+        e0 = line_energy(coil, cs, k, elems, mv, lev, lev) + 0.5 * j * w * w
+        steps[0, 0] = -1.0
+        e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
+        rest0 = cs.dev_rest[k] * (cs.dev_ref[k, 0] ** 2 + cs.dev_ref[k, 1] ** 2)
+        out[:] = 0.0
+        move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
+        j += cs.dev_rest[k] * (cs.dev_ref[k, 0] ** 2 + cs.dev_ref[k, 1] ** 2) - rest0 - out[6]
+        w += out[5] / j  # the moment of the device's reaction about the axis
+        pose[6, 2] = w
+        place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
+        place_held(coil, cs, mv.pos, mv.vel, hs.angle[0], w)
+        e1 = line_energy(coil, cs, k, elems, mv, lev, coil.arm_ptr[k] + cs.front[k]) \
+            + 0.5 * j * w * w + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
+        cs.dev_work[k] += e1 - e0
+    hs.rate[0], hs.inertia[0] = w, j
 
 
 def axis_start(model, law, state, force, dt):

@@ -92,9 +92,12 @@ class Coil(NamedTuple):
     coil_code : int
         The coil (:data:`COILS`): 1 held, 0 loose.
     payout_code : int
-        The payout device (fe.payout.PAYOUTS): 0 free, 1 rate.
-    payout_t, payout_len : (P,) float64 [s], [m]
-        The payout law's paid-out length, linear between points (empty: none).
+        The payout device (fe.payout.PAYOUTS): 0 free, 1 gate, 2 reel ('rate'), 3 brake.
+    law_t, law_v : (P,) float64 [s], [m] or [N]
+        The device's law, linear between points, constant outside them (empty: none): the
+        paid-out length (gate, reel) or the brake force (brake).
+    test_half : (T,) float64 [kg]
+        Half the mass of each free element (its share of each end node).
     bundle_code : int
         0 none, 1 until_length, 2 until_time.
     bundle_value : float
@@ -121,18 +124,36 @@ class Coil(NamedTuple):
     base_rim: np.ndarray
     coil_code: int
     payout_code: int
-    payout_t: np.ndarray
-    payout_len: np.ndarray
+    law_t: np.ndarray
+    law_v: np.ndarray
+    test_half: np.ndarray
     bundle_code: int
     bundle_value: float
     arm_hold: np.ndarray
 
 
 class CoilState(NamedTuple):
-    """Per arm: ``front`` (n_arms,) int64, the levels released; ``bundled`` (n_arms,) bool."""
+    """Per arm: ``front`` (n_arms,) int64, the levels released; ``bundled`` (n_arms,) bool;
+    and a payout device's (fe.payout; zero without a reel or brake), each (n_arms,):
+
+    ``s_dev`` [m], the arm coordinate of the line at the device D (free length arm_end -
+    s_dev); ``dev_rest`` [kg], the mass held at D (the front level's free elements' outer
+    halves still in the device); ``dev_ref`` (n_arms, 3) [m], D's hub-frame position;
+    ``dev_x`` (n_arms, 3) [m], D in the world now; ``dev_work`` [J], the device's work so
+    far (negative: energy it took); ``dev_tension`` [N], the line tension at D;
+    ``dev_speed`` [m/s], the payout speed of the last step; and ``dev_moment`` (3,) [N m],
+    the moment that carries the device forces from the held front nodes to D."""
 
     front: np.ndarray
     bundled: np.ndarray
+    s_dev: np.ndarray
+    dev_rest: np.ndarray
+    dev_ref: np.ndarray
+    dev_x: np.ndarray
+    dev_work: np.ndarray
+    dev_tension: np.ndarray
+    dev_speed: np.ndarray
+    dev_moment: np.ndarray
 
 
 def no_coil(n_arms: int = 0) -> Coil:
@@ -141,100 +162,7 @@ def no_coil(n_arms: int = 0) -> Coil:
     return Coil(np.zeros(n_arms + 1, np.int64), i0, np.zeros(0, np.int64), np.zeros((0, 3)), f0,
                 f0, np.zeros(0, bool), i0, np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), f0, np.zeros(n_arms), np.zeros(n_arms),
-                np.zeros(n_arms, bool), 0, 0, f0, f0, 0, 0.0, np.zeros(n_arms))
-
-
-def _levels(mesh, coil_nodes):
-    """Per arm, the coil's levels (outer first): [(arm, coord, nodes with the spine first)].
-    Linear in the coil size apart from one sort."""
-    arm, coord = mesh.node_arm[coil_nodes], np.round(mesh.node_arm_coord[coil_nodes], 9)
-    spine = np.isin(coil_nodes, np.asarray(mesh.node_sets.get("boundary", []), np.int64))
-    order = np.lexsort((coil_nodes, ~spine, -coord, arm))  # arm, outer first, spine first
-    a, c, nodes = arm[order], coord[order], coil_nodes[order]
-    cut = np.flatnonzero((np.diff(a) != 0) | (np.diff(c) != 0)) + 1
-    return [(int(a[g[0]]), float(c[g[0]]), nodes[g])
-            for g in np.split(np.arange(len(nodes)), cut)]
-
-
-def _free_elements(elem_nodes, level_of, level_arm, level_coord, level_first):
-    """Per level, its free elements (from a node of the level to a node of an outer level of
-    the same arm), the one joining two spine nodes first: (ptr, elem, from, to)."""
-    e = np.arange(len(elem_nodes))
-    cols = []
-    for a, b in ((elem_nodes[:, 0], elem_nodes[:, 1]), (elem_nodes[:, 1], elem_nodes[:, 0])):
-        la, lb = level_of[a], level_of[b]
-        ok = (la >= 0) & (lb >= 0)
-        ok[ok] &= (level_arm[la[ok]] == level_arm[lb[ok]]) & (level_coord[lb[ok]]
-                                                                > level_coord[la[ok]])
-        cols.append((la[ok], e[ok], a[ok], b[ok]))
-    la, el, fr, to = (np.concatenate(c) for c in zip(*cols))
-    spine = (fr == level_first[la]) & (to == level_first[level_of[to]])
-    order = np.lexsort((to, el, ~spine, la))
-    la, el, fr, to = la[order], el[order], fr[order], to[order]
-    ptr = np.searchsorted(la, np.arange(len(level_coord) + 1))
-    return ptr.astype(np.int64), el, fr, to
-
-
-def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundle=(0, 0.0),
-               hold=None) -> Coil:
-    """The Coil of a coiled mesh (``mesh.node_sets['coil']``), its levels and free elements.
-
-    Parameters
-    ----------
-    mesh : meshgen.mesh.Mesh
-    elem_nodes : (m, 2) int64
-    node_mass : (n,) float64 [kg]
-    coil_code : int
-        See :data:`COILS`.
-    payout : (code, None or ((P,) times [s], (P,) lengths [m]))
-        The payout device (fe.payout.PAYOUTS) and its law's paid-out length table.
-    bundle : (code, value)
-        See :data:`BUNDLES`.
-    hold : None or (n_arms,) float64 [s]
-        Times until which each arm's whole coil is held (None: none).
-    """
-    coil_nodes = np.asarray(mesh.node_sets.get("coil", []), np.int64)
-    if len(coil_nodes) == 0:
-        return no_coil(mesh.n_arms)
-    elem_nodes = np.asarray(elem_nodes, np.int64)
-    levels = _levels(mesh, coil_nodes)
-    level_arm = np.array([k for k, _, _ in levels], np.int64)
-    coord = np.array([c for _, c, _ in levels])
-    sizes = np.array([len(n) for _, _, n in levels])
-    level_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    nodes = np.concatenate([n for _, _, n in levels])
-    level_of = np.full(mesh.n_nodes, -1, np.int64)
-    level_of[nodes] = np.repeat(np.arange(len(levels)), sizes)
-    first = nodes[level_ptr[:-1]]
-    test_ptr, t_el, t_from, t_to = _free_elements(elem_nodes, level_of, level_arm, coord, first)
-    r = np.hypot(mesh.node_pos[:, 0], mesh.node_pos[:, 1])
-    on_rim = np.abs(r - mesh.hub_radius) <= 1e-9 * mesh.hub_radius
-    arm_ptr = np.searchsorted(level_arm, np.arange(mesh.n_arms + 1)).astype(np.int64)
-    ends, bases = np.zeros(mesh.n_arms), np.zeros(mesh.n_arms)
-    base_rim = np.zeros(mesh.n_arms, bool)
-    for k in range(mesh.n_arms):
-        mine = coord[arm_ptr[k]:arm_ptr[k + 1]]
-        ends[k] = mine.max()
-        below = np.flatnonzero((mesh.node_arm == k) & (mesh.node_arm_coord < mine.min() - 1e-9))
-        step = np.min(-np.diff(mine)) if len(mine) > 1 else 0.0
-        if len(below):
-            top = below[mesh.node_arm_coord[below] >= mesh.node_arm_coord[below].max() - 1e-9]
-            bases[k] = mesh.node_arm_coord[top[0]]
-            base_rim[k] = bool(np.all(on_rim[top]))
-        else:
-            bases[k] = mine.min() - step
-    t, L = (np.zeros(0), np.zeros(0)) if payout[1] is None else payout[1]
-    return Coil(
-        arm_ptr=arm_ptr, level_ptr=level_ptr, level_nodes=nodes,
-        level_ref=np.ascontiguousarray(mesh.node_pos[nodes], np.float64), level_coord=coord,
-        level_mass=np.add.reduceat(node_mass[nodes], level_ptr[:-1]),
-        level_rim=np.logical_and.reduceat(on_rim[nodes], level_ptr[:-1]),
-        test_ptr=test_ptr, test_elem=t_el, test_from=t_from, test_to=t_to,
-        test_to_coord=coord[level_of[t_to]], arm_end=ends, arm_base=bases, base_rim=base_rim,
-        coil_code=int(coil_code), payout_code=int(payout[0]),
-        payout_t=np.asarray(t, np.float64), payout_len=np.asarray(L, np.float64),
-        bundle_code=int(bundle[0]), bundle_value=float(bundle[1]),
-        arm_hold=np.zeros(mesh.n_arms) if hold is None else np.asarray(hold, np.float64))
+                np.zeros(n_arms, bool), 0, 0, f0, f0, f0, 0, 0.0, np.zeros(n_arms))
 
 
 def coil_start(coil: Coil) -> CoilState:
@@ -244,7 +172,10 @@ def coil_start(coil: Coil) -> CoilState:
     counts = np.diff(coil.arm_ptr)
     held = coil.coil_code == COILS["held"].code
     front = np.where(coil.arm_hold > 0, 0, np.minimum(counts, 1)) if held else counts.copy()
-    return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0))
+    z = np.zeros(n_arms)
+    return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0),
+                     coil.arm_end.copy(), z.copy(), np.zeros((n_arms, 3)), np.zeros((n_arms, 3)),
+                     z.copy(), z.copy(), z.copy(), np.zeros(3))
 
 
 @njit(cache=True)
@@ -358,17 +289,23 @@ def scatter_bundles(coil, cs, pos, vel):
 
 
 @njit(cache=True)
-def payout_allowed(coil, t):
-    """Paid-out length [m] a rate payout allows at time t (inf: free payout)."""
-    tt, ll = coil.payout_t, coil.payout_len
-    if coil.payout_code != 1:  # fe.payout.PAYOUTS: only 'rate' bounds the payout
-        return np.inf
+def law_value(tt, vv, t):
+    """The value at time t of a law given at times ``tt`` (increasing) by ``vv``: linear
+    between the points, constant outside them."""
     if t <= tt[0]:
-        return ll[0]
+        return vv[0]
     for q in range(1, tt.shape[0]):
         if t <= tt[q]:
-            return ll[q - 1] + (ll[q] - ll[q - 1]) * (t - tt[q - 1]) / (tt[q] - tt[q - 1])
-    return ll[-1]
+            return vv[q - 1] + (vv[q] - vv[q - 1]) * (t - tt[q - 1]) / (tt[q] - tt[q - 1])
+    return vv[-1]
+
+
+@njit(cache=True)
+def payout_allowed(coil, t):
+    """Paid-out length [m] a gate or a reel allows at time t (inf: no such law)."""
+    if coil.payout_code != 1 and coil.payout_code != 2:  # fe.payout.PAYOUTS: gate, rate
+        return np.inf
+    return law_value(coil.law_t, coil.law_v, t)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -414,7 +351,9 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
     hub and whose paid-out length would then not exceed the payout law's at time t (broken
     elements and the hub's ``frame``: see :func:`pulls`); an arm held whole until
     ``arm_hold`` releases its tip level then. Returns the hub's effective inertia without the
-    released nodes [kg m^2]."""
+    released nodes [kg m^2]. (A reel or a brake releases its levels itself: fe.payout.)"""
+    if coil.payout_code >= 2:
+        return inertia
     allowed = payout_allowed(coil, t)
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
@@ -461,7 +400,8 @@ def open_bundles(coil, cs, nodes, mass, inv_mass, t):
 def front_row(coil, cs, k, t):
     """Arm k's held coil at time t: (front coordinate, next outer level's coordinate, 1 if
     the pinned node lies on the rim, 1 if the payout law holds the front back) [m, m, -, -].
-    Once every level is released the front is the arm's base."""
+    Under a reel or a brake the front is the device's line coordinate. Once every level is
+    released the front is the arm's base."""
     lo, end = coil.arm_ptr[k], coil.arm_ptr[k + 1]
     lev = lo + cs.front[k]
     if lev >= end:
@@ -469,6 +409,8 @@ def front_row(coil, cs, k, t):
         return coil.arm_base[k], s_n, 1.0 if coil.base_rim[k] else 0.0, 0.0
     q = coil.test_ptr[lev]
     s_f = coil.level_coord[lev]
+    if coil.payout_code >= 2:  # a reel or brake: the line leaves at its device
+        s_f = cs.s_dev[k]
     s_n = coil.test_to_coord[q] if q < coil.test_ptr[lev + 1] else s_f
     after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end else coil.arm_base[k])
     bound = 1.0 if after > payout_allowed(coil, t) else 0.0

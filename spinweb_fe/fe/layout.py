@@ -73,6 +73,9 @@ ENERGY = (
     Term("rupture_dissipation", 1, "J", "rupture: strain energy the broken elements held "
                                         "when they broke", step=False,
          present=lambda model: bool(model.strength.rupture)),
+    Term("brake_work", -1, "J", "reel or brake (payout = rate or brake): each arm's device's "
+                                "work on its line so far, per arm (negative: energy it took)",
+         step=False, present=lambda model: model.coil.payout_code >= 2),
     Term("gravity_gradient_work", -1, "J", "gravity gradient: work of the tidal field on "
                                            "nodes and hub",
          present=lambda model: model.env.n > 0.0),
@@ -109,6 +112,8 @@ ARM = (
     Col("rim", 1, "1", "1 if the front lies on the hub rim"),
     Col("held_back", 1, "1", "1 if the payout law holds the front back"),
     Col("allowed", 1, "m", "paid-out length the payout law allows (NaN: free payout)"),
+    Col("tension", 1, "N", "reel or brake: the line tension at the departure point"),
+    Col("work", 1, "J", "reel or brake: the device's work so far (negative: energy taken)"),
 )
 
 #: the strength row of scenes with a failure strain (fe.rupture)

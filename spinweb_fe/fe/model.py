@@ -130,6 +130,7 @@ class Kernel(NamedTuple):
     hub: Hub
     coil: Coil
     bundles: object  # the coil when it has bundles, else None (numba compiles none of them)
+    devices: object  # the coil when it has reels or brakes (fe.payout), else None
     strength: Strength
     env: Environment
 
@@ -183,8 +184,9 @@ class Model:
         """The arrays of the step kernels, grouped by entity."""
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
         bundles = self.coil if self.coil.bundle_code > 0 else None
+        devices = self.coil if self.coil.payout_code >= 2 else None
         return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, bundles,
-                      strength, self.env)
+                      devices, strength, self.env)
 
     @property
     def hub_kind(self) -> tuple:

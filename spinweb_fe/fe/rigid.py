@@ -229,7 +229,8 @@ def _add_point(m, r, first, inertia):
 @njit(cache=True)
 def assemble(body, nodes, hub, coil, cs, rs):
     """Mass, centre of mass, inertia tensor about it and principal axes of the body: the
-    hub, the tied nodes and the held coil levels (behind each arm's front), into ``rs``."""
+    hub, the tied nodes, the held coil levels (behind each arm's front) and the mass a
+    payout device holds at its departure point (fe.payout), into ``rs``."""
     mass = body.mass
     first = np.zeros(3)
     inertia = body.inertia.copy()
@@ -243,6 +244,9 @@ def assemble(body, nodes, hub, coil, cs, rs):
             i = coil.level_nodes[p]
             mass += nodes.mass[i]
             _add_point(nodes.mass[i], coil.level_ref[p], first, inertia)
+        if cs.dev_rest[k] > 0.0:
+            mass += cs.dev_rest[k]
+            _add_point(cs.dev_rest[k], cs.dev_ref[k], first, inertia)
     c = first / mass
     cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
     for a in range(3):  # parallel axes: about the centre of mass

@@ -7,9 +7,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.fe.axis import place_rigid
+from spinweb_fe.fe.axis import axis_pose, place_rigid
+from spinweb_fe.fe.body import body_pose
 from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
 from spinweb_fe.fe.layout import STEP_TERMS
+from spinweb_fe.fe.payout import locate_devices, start_devices
 from spinweb_fe.fe.rigid import RigidState, place_body, rigid_start
 from spinweb_fe.fe.rupture import StrengthState, no_strength, strength_start
 
@@ -105,7 +107,7 @@ def to_arrays(state: State) -> dict:
 def from_arrays(arrays: dict) -> State:
     """Inverse of :func:`to_arrays` (KeyError names a missing field). Arrays without the
     strength fields (written before they existed, by scenes without a strength check) get
-    those of no check; energy terms written one by one (before fe.layout) are gathered;
+    those of no check, a coil without the payout devices' fields zeros there; energy terms written one by one (before fe.layout) are gathered;
     a rigid body of empty arrays (a fixed axis, before it was None) is None."""
     nested = {"hub": HubState, "coil": CoilState, "strength": StrengthState,
               "rigid": RigidState}
@@ -117,6 +119,12 @@ def from_arrays(arrays: dict) -> State:
             rigid = RigidState(*(arrays.get(f"rigid/{k}", np.zeros(0))
                                  for k in RigidState._fields))
             kw[name] = rigid if rigid.position.size else None
+        elif name == "coil":
+            n_arms = len(arrays["coil/front"])
+            zero = {"dev_ref": np.zeros((n_arms, 3)), "dev_x": np.zeros((n_arms, 3)),
+                    "dev_moment": np.zeros(3)}
+            kw[name] = CoilState(*(arrays.get(f"coil/{k}", zero.get(k, np.zeros(n_arms)))
+                                   for k in CoilState._fields))
         elif name == "totals" and "totals" not in arrays:
             kw[name] = np.array([float(np.asarray(arrays.get(f"totals/{_OLD_TOTALS[t.name]}",
                                                              [0.0])).ravel()[0])
@@ -154,10 +162,15 @@ def initial_state(model, omega: float, spin: str = "all", tilt_rate: float = 0.0
                      bool(cs.bundled[k]))
     place_held(coil, cs, pos, vel, 0.0, omega)
     inertia = hub.j_eff + held_inertia(coil, cs, model.nodes)
+    if coil.payout_code >= 2:  # a reel or a brake holds each arm's line at its tip
+        inertia += start_devices(coil, cs, model.nodes, mass, inv)
+        locate_devices(coil, cs, axis_pose(0.0, omega))
     rigid = None
     if model.free_hub:
         rigid = rigid_start(model, cs, omega, tilt_rate)
         place_body(hub, coil, cs, rigid, pos, vel)
+        if coil.payout_code >= 2:
+            locate_devices(coil, cs, body_pose(rigid))
         inertia = float(rigid.inertia[2, 2])
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),
                                                np.array([inertia])), cs,

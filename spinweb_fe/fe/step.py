@@ -32,14 +32,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.axis import (NodeMotion, axis_field, axis_field_work, axis_kick, axis_nodes,
-                                axis_reaction, axis_row, axis_start, axis_vector_row,
-                                place_rigid)
-from spinweb_fe.fe.body import (body_drift, body_kick, body_nodes, body_release, body_row,
-                                body_start, body_state)
+from spinweb_fe.fe.axis import (NodeMotion, axis_devices, axis_field, axis_field_work,
+                                axis_kick, axis_nodes, axis_reaction, axis_row, axis_start,
+                                axis_vector_row, place_rigid)
+from spinweb_fe.fe.body import (body_devices, body_drift, body_kick, body_nodes, body_release,
+                                body_row, body_start, body_state)
 from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
                                 payout_allowed, place_held, release_fronts, scatter_bundles)
 from spinweb_fe.fe.forces import element_forces, node_forces
+from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
 from spinweb_fe.fe.vectors import node_momenta, plane_stats
@@ -85,11 +86,13 @@ def checks_strength(strength):
 
 
 @njit(cache=True)
-def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads=None):
+def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads=None,
+                 devices=None, cs=None):
     """The internal forces at x_n into ``work.force`` (n, 3) (overwritten): every element's force
     vector (fe.forces, or the strength pass of fe.rupture for a scene with a failure strain;
-    ``ss`` its state, ``dt`` the step), then their sum per node. Returns (strain energy, max
-    tension, damping power).
+    ``ss`` its state, ``dt`` the step), the elements a reel or brake holds at its departure
+    point as it holds them (fe.payout; ``devices`` the coil, None without one, ``cs`` its
+    state), then their sum per node. Returns (strain energy, max tension, damping power).
 
     ``strength`` None (no strength check) and ``threads`` None (one thread) are decided by
     numba from the argument types, before it types the branches: a scene compiles only the
@@ -99,6 +102,11 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
                                         threads)
     else:
         se, tmax, pdamp = element_forces(elems, links, pos, vel, work, record, threads)
+    if devices is not None:  # pruned by numba when None
+        dse, dpow, dmax = device_forces(devices, cs, elems, pos, vel, work, record, ss.broken)
+        se += dse
+        pdamp += dpow
+        tmax = max(tmax, dmax)
     node_forces(links, work, threads)
     return se, tmax, pdamp
 
@@ -185,6 +193,15 @@ def release(axis, body, elems, nodes, hub, coil, cs, rs, mv, j_eff, t, broken):
 
 
 @njit(inline="always")
+def device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs, t, dt):
+    """The reels and brakes at the end of a step (fe.payout; nothing without them)."""
+    if axis is not None:
+        axis_devices(devices, cs, elems, nodes, hub, mv, hs, t, dt)
+    if body is not None:
+        body_devices(devices, body, cs, elems, nodes, hub, rs, mv, hs, t, dt)
+
+
+@njit(inline="always")
 def hub_now(axis, body, rs, kick, j_eff):
     """(rate omega_{n+1/2} about the hub axis [rad/s], effective inertia [kg m^2]) after the
     step."""
@@ -217,14 +234,16 @@ def probe_velocities(rec, k, vel, vprobe):
 @njit(cache=True, no_cpython_wrapper=True)
 def record_arms(coil, cs, table, t, sa):
     """Per arm at a record step (see fe.coil.front_row), into the slots ``sa`` of
-    fe.layout.ARM: the front's and the next outer level's arm coordinates, pinned on the rim
-    (1/0), held back by the payout law (1/0), and the paid-out length the law allows (NaN:
-    free payout)."""
+    fe.layout.ARM: the front's (a reel's or brake's line at D) and the next outer level's arm
+    coordinates, pinned on the rim (1/0), held back by the payout law (1/0), the paid-out
+    length the law allows (NaN: none), and a reel's or brake's tension at D and work."""
     allowed = payout_allowed(coil, t)
     for k in range(table.shape[0]):
         row = table[k]
         row[sa.front], row[sa.next], row[sa.rim], row[sa.held_back] = front_row(coil, cs, k, t)
         row[sa.allowed] = allowed if np.isfinite(allowed) else np.nan
+        row[sa.tension] = cs.dev_tension[k]
+        row[sa.work] = cs.dev_work[k]
 
 
 @njit(inline="always")
@@ -300,6 +319,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     # per array), which made 40 % of a 200-element step
     links, bundles, cs, ss, rs, hs = model.links, model.bundles, state.coil, state.strength, \
         state.rigid, state.hub
+    devices = model.devices
     mass, inv_mass, broken = state.node_mass, state.node_inv_mass, ss.broken
     mv = NodeMotion(pos, vel, mass, inv_mass)
     hub_angle, hub_rate, hub_inertia = hs.angle, hs.rate, hs.inertia
@@ -315,7 +335,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         holding = any_held(arm_ptr, front)
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
-                                       threads)
+                                       threads, devices, cs)
         field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
                     holding)
         if has_coil:
@@ -371,6 +391,9 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if has_coil:
             open_bundles(bundles, cs, nodes, mass, inv_mass, (step + 1) * dt)
         hub_rate[0], hub_inertia[0] = hub_now(axis, body, rs, kick, j_eff)
+        if holding:  # the reels and brakes let their lines out
+            device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs,
+                         (step + 1) * dt, dt)
     return 0, nrec
 
 

@@ -115,12 +115,13 @@ class ArmTracker:
                 setattr(self, k, np.array(v, dtype=getattr(self, k).dtype))
 
     def columns(self, rows, probe_pos, probe_vel, arm_table=None, row_dt=1.0,
-                rate=False) -> dict:
+                rate=False, law=None) -> dict:
         """History columns of T rows, each (T, n_arms): ``arm_length``, ``arm_angle``,
         ``tip_omega``, ``tip_position`` (T, n_arms, 3), and with a held coil's arm rows
         ``arm_table`` from the step loop (fe.layout.ARM by name, each (T, n_arms)) also
-        ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under a rate
-        payout (``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
+        ``payout_front`` [m], ``payout_speed`` [m/s] (``row_dt`` [s] apart) and, under a
+        payout device (``rate``: the arm hangs from its front) with a length law (``law``,
+        default ``rate``), ``payout_allowed`` [m]. ``rows``: the rows' ``time`` and
         ``hub_angle``."""
         L, phi, wtip, sd = self.update(probe_pos, probe_vel, rows["hub_angle"], arm_table, rate)
         out = {"arm_length": L, "arm_angle": phi, "tip_omega": wtip,
@@ -132,7 +133,7 @@ class ArmTracker:
         if len(sd):
             self.prev_sd = sd[-1].copy()
         out.update(payout_front=arm_table["front"].copy(), payout_speed=speed)
-        if rate:
+        if rate if law is None else law:
             out["payout_allowed"] = arm_table["allowed"].copy()
             self._watch(arm_table, sd, rows["time"])
         return out

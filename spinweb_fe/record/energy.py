@@ -19,11 +19,12 @@ ENERGY_WARN = 0.01  # warn (once) above this fraction: results are suspect, redu
 def energy_balance(h):
     """KE + SE + sum(sign * term) over the energy terms of fe.layout.ENERGY (works in,
     dissipations out), which should stay constant, for a history dict; a term the history
-    does not have (a scene without it) counts zero."""
+    does not have (a scene without it) counts zero, a term per arm (T, n_arms) its sum."""
     bal = h["kinetic_energy"] + h["strain_energy"]
     for term in ENERGY:
         if term.name in h:
-            bal = bal + term.sign * h[term.name]
+            value = np.asarray(h[term.name])
+            bal = bal + term.sign * (value.sum(axis=1) if value.ndim == 2 else value)
     return bal
 
 

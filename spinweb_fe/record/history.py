@@ -32,9 +32,10 @@ COLUMNS = {
     "payout_front": Column("m", "held coil: arm coordinate of each arm's peel front (its "
                                 "base once everything is released)"),
     "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
-    "payout_allowed": Column("m", "rate payout: the paid-out length the law allows"),
-    "restraint_work": Column("J", "analytical rate payout: work of the restraint that holds the "
-                                  "arm back, E - E0 - torque work"),
+    "payout_allowed": Column("m", "gate or reel (payout = gate or rate): the paid-out length "
+                                  "the law allows"),
+    "brake_tension": Column("N", "reel or brake: the line tension at each arm's departure "
+                                 "point"),
     "max_strain": Column("1", "failure strain given: strain of the most utilised element, "
                               "the largest over the steps since the previous row"),
     "max_strain_element": Column("1", "failure strain given: index of that element"),
@@ -46,7 +47,7 @@ COLUMNS = {
 }
 #: columns that only some scenes or models have (a held coil, a rate payout, a failure
 #: strain, rupture, an energy term a scene may lack, the vector row)
-OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "restraint_work", "max_strain",
+OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "brake_tension", "max_strain",
              "max_strain_element", "max_strain_arm", "utilisation", "broken_elements")
             + tuple(t.name for t in ENERGY if t.present is not None)
             + tuple(c.name for c in VECTOR))

@@ -143,7 +143,10 @@ class _Chunks:
                                             else 0)), SLOTS)
         self.vec = np.zeros((rows, VEC_WIDTH)) if vectors or model.free_hub else None
         self.coiled = len(model.coil.level_nodes) > 0
-        self.rate = model.coil.payout_code == PAYOUTS["rate"].code
+        code = model.coil.payout_code
+        self.rate = code != PAYOUTS["free"].code  # a device anchors the arm at its front
+        self.law = code in (PAYOUTS["gate"].code, PAYOUTS["rate"].code)  # a length law
+        self.devices = code in (PAYOUTS["rate"].code, PAYOUTS["brake"].code)
         self.row_dt = rec_every * dt
         self.tracker = tracker
         self.model = model
@@ -163,7 +166,10 @@ class _Chunks:
             if self.model.free_hub:  # the arms are measured in the hub's plane
                 pos, vel = hub_plane(pos, vel, vectors["hub_position"],
                                      vectors["hub_quaternion"])
-        rows.update(self.tracker.columns(rows, pos, vel, arms, self.row_dt, self.rate))
+        rows.update(self.tracker.columns(rows, pos, vel, arms, self.row_dt, self.rate,
+                                         self.law))
+        if self.devices:
+            rows["brake_tension"], rows["brake_work"] = arms["tension"], arms["work"]
         if vectors is not None:
             rows["tip_position"] = self.rec.probe_pos[:nrec, :self.tracker.n].copy()
             rows.update(vectors)
