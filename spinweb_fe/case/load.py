@@ -226,6 +226,7 @@ def _cross_check(src, scene, raw, t):
         raise InputError(src, "fold.pattern",
                          f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
     _check_stowage(src, scene, raw, t)
+    _check_start(src, t)
     _check_free_hub(src, t)
     _check_perturbation(src, scene, t)
     _check_environment(src, t)
@@ -283,6 +284,23 @@ def _check_stowage(src, scene, raw, t):
     if st["bundle"] != "none" and scene != "web":
         raise InputError(src, "stowage.bundle", "bundles gather a web's levels: a tether "
                          "scene has none")
+
+
+def _check_start(src, t):
+    """[initial] state = 'steady': a scene that has a steady spinning state to start from."""
+    ini = t["initial"]
+    if ini["state"] != "steady":
+        return
+    if t["fold"]["pattern"] in COILED_FOLDS:
+        raise InputError(src, "initial.state", f"'steady' needs a deployed scene (fold.pattern "
+                         f"= 'flat' or 'straight'): a coiled scene ('{t['fold']['pattern']}') "
+                         "has no steady spinning state")
+    if ini["spin"] != "all":
+        raise InputError(src, "initial.state", "'steady' spins the whole scene: needs "
+                         "initial.spin = 'all'")
+    if ini["omega"] == 0:
+        raise InputError(src, "initial.omega", "is 0: a steady start needs a spin rate (a "
+                         "cable net without spin has no steady state)")
 
 
 def _choice_ok(src, reg, table, key, t):

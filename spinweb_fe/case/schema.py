@@ -19,6 +19,7 @@ from spinweb_fe.fe.payout import PAYOUTS
 REQUIRED = object()  # marker: the key has no default
 
 SPINS = ("all", "hub")
+STARTS = ("rigid", "steady")
 MAX_ELEMENTS = 10_000_000  # cable elements of a scene (memory: about 1 kB per element)
 MAX_HISTORY_ROWS = 10_000_000  # time.end / output.history_dt
 MAX_FRAMES = 100_000  # time.end / output.frame_dt
@@ -127,6 +128,9 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "initial": {
         "omega": F("float", 8 * math.pi, "finite", "rad/s", "initial spin rate"),
         "spin": F("str", "all", SPINS, "", "all: hub and web spin; hub: only the hub"),
+        "state": F("str", "rigid", STARTS, "", "rigid: the mesh's positions turning rigidly at "
+                   "omega; steady: the steady spinning equilibrium at omega (straight "
+                   "tethers and flat webs: the Newton solve of spinweb modes)"),
     },
     "control": _control_table(),
     "perturbation": {

@@ -24,7 +24,7 @@ from spinweb_fe.fe.coil import gather_bundles, held_moment, place_held, scatter_
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.payout import (device_target, line_energy, line_pairing, locate_devices,
-                                  move_line)
+                                  move_line, rest_ref)
 from spinweb_fe.fe.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
@@ -423,16 +423,21 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
         e0 = line_energy(coil, cs, k, elems, mv, lev, lev) + 0.5 * j * w * w
         steps[0, 0] = -1.0
         e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
-        rest0 = cs.dev_rest[k] * (cs.dev_ref[k, 0] ** 2 + cs.dev_ref[k, 1] ** 2)
+        r = rest_ref(coil, k, lev)
+        rest0 = cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
         out[:] = 0.0
         move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
-        j += cs.dev_rest[k] * (cs.dev_ref[k, 0] ** 2 + cs.dev_ref[k, 1] ** 2) - rest0 - out[6]
+        lev1 = coil.arm_ptr[k] + cs.front[k]
+        if lev1 < coil.arm_ptr[k + 1]:
+            r = rest_ref(coil, k, lev1)
+            j += cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
+        j -= rest0 + out[6]
         w += out[5] / j  # the moment of the device's reaction about the axis
         pose[6, 2] = w
         place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
         place_held(coil, cs, mv.pos, mv.vel, hs.angle[0], w)
-        e1 = line_energy(coil, cs, k, elems, mv, lev, coil.arm_ptr[k] + cs.front[k]) \
-            + 0.5 * j * w * w + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
+        e1 = (line_energy(coil, cs, k, elems, mv, lev, lev1) + 0.5 * j * w * w
+              + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
         cs.dev_work[k] += e1 - e0
     hs.rate[0], hs.inertia[0] = w, j
 

@@ -73,14 +73,15 @@ def _table_rule(key, what, increasing):
     return check
 
 
-def _device(name, rule):
+def _device(name, rule, what=""):
     def check(tables):
         st = tables["stowage"]
         if st["coil"] != "held":
             return "stowage.payout", f"a {name} payout needs stowage.coil = 'held'"
-        if name != "gate" and st["bundle"] != "none":
-            return "stowage.bundle", (f"a {name} holds each arm's line at its device: "
-                                      "bundles are not modelled with it (bundle = 'none')")
+        if what and st["bundle"] != "none":
+            return "stowage.bundle", (f"a {what} holds each arm's line at its departure "
+                                      "point: bundles are not modelled with it (bundle = "
+                                      "'none')")
         return rule(tables)
     return check
 
@@ -99,7 +100,7 @@ PAYOUTS = registry(
     Choice("rate", REEL, "a reel at each arm's departure point: the free length follows the "
                          "law (payout_rate or payout_length)",
            keys=_LENGTH, need=(("payout_rate", "payout_length"),),
-           check=_device("rate", _table_rule("payout_length", "lengths", True)),
+           check=_device("rate", _table_rule("payout_length", "lengths", True), "reel"),
            analytic="the paying regime: the arm hangs from its departure point, which the "
                     "law moves back along the coil"),
     Choice("brake", BRAKE, "a brake at each arm's departure point: the line slips while "
@@ -108,7 +109,7 @@ PAYOUTS = registry(
                  Param("brake_force_table", "s, N", None, "payout = brake: [[t, N], ...] "
                        "brake force N at time t, linear between the points", kind="table")),
            need=(("brake_force", "brake_force_table"),),
-           check=_device("brake", _table_rule("brake_force_table", "forces", False)),
+           check=_device("brake", _table_rule("brake_force_table", "forces", False), "brake"),
            analytic="the braking regime: stick (the arm pivots about its departure point) "
                     "and slip (the tension there equals the brake force)"),
 )
@@ -228,6 +229,14 @@ def _hub_velocity(pose, x):
 
 
 @njit(cache=True)
+def rest_ref(coil, k, lev):
+    """(3,) hub-frame place of the mass arm k's device holds while ``lev`` is its front: the
+    next outer level's place on the coil (where the outer halves it holds came from; the
+    place does not move while the line passes D, so no mass moves without its momentum)."""
+    return coil.level_ref[coil.level_ptr[lev - 1]]
+
+
+@njit(cache=True)
 def start_devices(coil, cs, nodes, mass, inv_mass):
     """A reel's or brake's start: every arm's line at its tip (nothing out: s_dev the tip's
     coordinate), the front level's free elements wholly in the device (their outer halves
@@ -245,8 +254,9 @@ def start_devices(coil, cs, nodes, mass, inv_mass):
 @njit(cache=True)
 def _open_level(coil, cs, k, lev, mass, inv_mass):
     """Level ``lev`` becomes arm k's front with its free elements wholly in the device:
-    their outer halves leave the outer nodes' masses and are held at D (the next outer
-    level's place). Returns the held mass's m (x^2 + y^2) [kg m^2]."""
+    their outer halves leave the outer nodes' masses and are held by the device (at
+    :func:`rest_ref`), D at the next outer level's place. Returns the held mass's
+    m (x^2 + y^2) [kg m^2]."""
     rest = 0.0
     for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
         b = coil.test_to[q]
@@ -255,7 +265,8 @@ def _open_level(coil, cs, k, lev, mass, inv_mass):
         rest += coil.test_half[q]
     cs.dev_rest[k] = rest
     cs.dev_ref[k] = device_point(coil, k, lev, coil.level_coord[lev - 1])
-    return rest * (cs.dev_ref[k, 0] ** 2 + cs.dev_ref[k, 1] ** 2)
+    r = rest_ref(coil, k, lev)
+    return rest * (r[0] ** 2 + r[1] ** 2)
 
 
 @njit(cache=True)
@@ -272,38 +283,41 @@ def _release(coil, cs, k, nodes, mass, inv_mass, lev):
 
 
 @njit(cache=True)
-def brake_target(coil, cs, k, lev, elems, pos, x_d, axis, force):
+def brake_target(coil, cs, k, lev, elems, pos, pose, force):
     """The line coordinate at D after the brake's step: the line slips while it pulls away
     from the hub at D (the pull of the front level's elements has an outward part, along
-    the radial of D from the hub ``axis`` (2, 3): a point on it and its unit direction) and
-    its tension (the outer nodes at ``pos``, D at ``x_d``) exceeds ``force`` [N], to where
-    the tension equals it (a return mapping: Newton on the convex, piecewise linear
-    tension, from the stuck state; it stops at the front level's coordinate). A line that
-    lies along the hub or wraps on it stays: the coil holds it, as the free payout's does."""
+    D's radial from the hub axis of ``pose``) and its tension (the outer nodes at ``pos``, D
+    where the line's coordinate puts it on the coil) exceeds ``force`` [N], to where the
+    tension equals it (a return mapping: Newton on the tension, from the stuck state; it
+    stops at the front level's coordinate). A line that lies along the hub or wraps on it
+    stays: the coil holds it, as the free payout's does."""
     s_old, s_f = cs.s_dev[k], coil.level_coord[lev]
-    c, a = axis[0], axis[1]
-    rx, ry, rz = x_d[0] - c[0], x_d[1] - c[1], x_d[2] - c[2]
-    h = rx * a[0] + ry * a[1] + rz * a[2]
-    rx, ry, rz = rx - h * a[0], ry - h * a[1], rz - h * a[2]  # D's radial
+    x_d = cs.dev_x[k]
+    c = pose[3]
+    ax = np.array([pose[0, 2], pose[1, 2], pose[2, 2]])
+    r = x_d - c
+    r = r - (r[0] * ax[0] + r[1] * ax[1] + r[2] * ax[2]) * ax  # D's radial
     x = 0.0
-    for it in range(coil.test_ptr[lev + 1] - coil.test_ptr[lev] + 2):
+    for it in range(coil.test_ptr[lev + 1] - coil.test_ptr[lev] + 4):
+        if it > 0:
+            x_d = _world(pose, device_point(coil, k, lev, s_old - x))
         n, slope, out = 0.0, 0.0, 0.0
         for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
             e, b = coil.test_elem[q], coil.test_to[q]
-            ux, uy, uz = pos[b, 0] - x_d[0], pos[b, 1] - x_d[1], pos[b, 2] - x_d[2]
-            d = np.sqrt(ux * ux + uy * uy + uz * uz)
+            u = pos[b] - x_d
+            d = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
             s_to = coil.test_to_coord[q]
             ell = elems.rest_len[e] * _frac(s_to, s_f, s_old - x)
             if d > ell and s_old - x > s_f:
                 k_e = elems.ea[e] * elems.inv_rest[e]
                 n += k_e * (d - ell)
                 slope += k_e * elems.rest_len[e] / (s_to - s_f)
-                out += k_e * (d - ell) / d * (ux * rx + uy * ry + uz * rz)
+                out += k_e * (d - ell) / d * (u[0] * r[0] + u[1] * r[1] + u[2] * r[2])
         if it == 0 and out <= 0.0:  # along the hub or wrapping on it: the coil holds
             break
-        if n <= force or slope == 0.0:
+        if abs(n - force) <= 1e-12 * force or slope == 0.0 or (it == 0 and n <= force):
             break
-        x += (n - force) / slope
+        x = max(x + (n - force) / slope, 0.0)
     return max(s_old - x, s_f)
 
 
@@ -314,10 +328,7 @@ def device_target(coil, cs, k, lev, elems, pos, pose, t):
     see :func:`locate_devices`)."""
     if coil.payout_code == REEL:
         return min(cs.s_dev[k], coil.arm_end[k] - law_value(coil.law_t, coil.law_v, t))
-    axis = np.empty((2, 3))
-    axis[0] = pose[3]
-    axis[1, 0], axis[1, 1], axis[1, 2] = pose[0, 2], pose[1, 2], pose[2, 2]
-    return brake_target(coil, cs, k, lev, elems, pos, cs.dev_x[k], axis,
+    return brake_target(coil, cs, k, lev, elems, pos, pose,
                         law_value(coil.law_t, coil.law_v, t))
 
 
@@ -433,9 +444,10 @@ def move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out):
                 vel[b, d] = (mass[b] * vel[b, d] + dm * v_in[d]) / m1
             mass[b] = m1
             inv_mass[b] = 1.0 / m1
-            J = dm * (v_in - v_h)
+            x_m = _world(pose, rest_ref(coil, k, lev))  # where the device's mass is held
+            J = dm * (v_in - _hub_velocity(pose, x_m))
             out[0:3] += J
-            out[3:6] -= np.cross(x_d, J) + np.cross(r, dm * v_in)
+            out[3:6] -= np.cross(x_m, J) + np.cross(pos[b] - x_m, dm * v_in)
             cs.dev_rest[k] -= dm
         s = s_stop
         if s > s_f:

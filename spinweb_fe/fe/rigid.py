@@ -244,9 +244,10 @@ def assemble(body, nodes, hub, coil, cs, rs):
             i = coil.level_nodes[p]
             mass += nodes.mass[i]
             _add_point(nodes.mass[i], coil.level_ref[p], first, inertia)
-        if cs.dev_rest[k] > 0.0:
+        lev = coil.arm_ptr[k] + cs.front[k]
+        if cs.dev_rest[k] > 0.0:  # held by a device at the next outer level's place
             mass += cs.dev_rest[k]
-            _add_point(cs.dev_rest[k], cs.dev_ref[k], first, inertia)
+            _add_point(cs.dev_rest[k], coil.level_ref[coil.level_ptr[lev - 1]], first, inertia)
     c = first / mass
     cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
     for a in range(3):  # parallel axes: about the centre of mass
