@@ -100,14 +100,13 @@ def hub_step(law, j_eff, tau, w_old, t, dt):
 
 
 @njit(inline="always")
-def axis_kick(tied_idx, coil, cs, law, pos, force, holding, w_old, j_eff, t, dt):
-    """Loads on the hub at x_n (the moment of the forces on its tied nodes and, while some
-    coil is ``holding``, on its held nodes) and its rate over the step: an AxisKick."""
+def axis_kick(tied_idx, law, pos, force, tau_held, w_old, j_eff, t, dt):
+    """Loads on the hub at x_n (the moment of the forces on its tied nodes, plus
+    ``tau_held``, that of the held coil and a device's line while some coil is held) and its
+    rate over the step: an AxisKick."""
     tau = moment_of(pos, force, tied_idx)
-    if holding:
-        tau += held_moment(coil, cs, pos, force)
-        if coil.payout_code >= 2:  # a reel's or brake's line pulls at D (fe.payout)
-            tau += cs.dev_moment[2]
+    if tau_held != 0.0:
+        tau += tau_held
     torque, w_new = hub_step(law, j_eff, tau, w_old, t, dt)
     return AxisKick(torque, w_old, w_new, j_eff)
 

@@ -38,7 +38,8 @@ from spinweb_fe.fe.axis import (NodeMotion, axis_devices, axis_field, axis_field
 from spinweb_fe.fe.body import (body_devices, body_drift, body_kick, body_nodes, body_release,
                                 body_row, body_start, body_state)
 from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
-                                payout_allowed, place_held, release_fronts, scatter_bundles)
+                                held_moment, payout_allowed, place_held, release_fronts,
+                                scatter_bundles)
 from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
@@ -133,12 +134,26 @@ def field_work(axis, env, field, tidal, mv, kick, dt):
 
 
 @njit(inline="always")
-def hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, holding, hs, t, dt):
-    """Loads on the hub at x_n and its kick over the step: fe.axis.AxisKick (fixed axis) or
-    fe.body.BodyKick (free hub); ``holding``: some arm still has levels on the hub."""
+def held_loads(axis, coil, cs, pos, force, tau):
+    """The moment about a fixed axis of the forces on its held coil at x_n, and of a reel's
+    or brake's line at D (fe.payout), added to ``tau`` [N m]; a free hub counts its held
+    coil in its own loads. Called only while some arm is held: the coil's arrays are
+    handed over only then (each array a call or an inlined phase receives costs a
+    reference count, per step)."""
     if axis is not None:
-        kick = axis_kick(hub.tied_idx, coil, cs, law, pos, force, holding, hs.rate[0],
-                         hs.inertia[0], t, dt)
+        tau += held_moment(coil, cs, pos, force)
+        if coil.payout_code >= 2:
+            tau += cs.dev_moment[2]
+    return tau
+
+
+@njit(inline="always")
+def hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, tau, hs, t, dt):
+    """Loads on the hub at x_n and its kick over the step: fe.axis.AxisKick (fixed axis:
+    ``tau`` the moment of the held coil, :func:`held_loads`) or fe.body.BodyKick (free
+    hub)."""
+    if axis is not None:
+        kick = axis_kick(hub.tied_idx, law, pos, force, tau, hs.rate[0], hs.inertia[0], t, dt)
     if body is not None:
         kick = body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt)
     return kick
@@ -169,14 +184,19 @@ def hub_drift(axis, body, rs, kick, theta, dt):
 
 
 @njit(inline="always")
-def place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, omega, holding):
-    """The tied nodes and (``holding``) the held coil move with the hub at theta_{n+1}."""
+def place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, omega):
+    """The tied nodes move with the hub at theta_{n+1} (a free hub's held coil too)."""
     if axis is not None:
         place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, theta, omega)
-        if holding:
-            place_held(coil, cs, pos, vel, theta, omega)
     if body is not None:
         place_body(hub, coil, cs, rs, pos, vel)
+
+
+@njit(inline="always")
+def place_coil(axis, coil, cs, pos, vel, theta, omega):
+    """The held coil moves with a fixed axis at theta_{n+1} (only while some arm is held)."""
+    if axis is not None:
+        place_held(coil, cs, pos, vel, theta, omega)
 
 
 @njit(inline="always")
@@ -314,6 +334,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     incr = np.zeros(totals.shape[0])
     vprobe = np.zeros((rec.probes.shape[0], 3))
     has_coil = coil.level_nodes.shape[0] > 0
+    has_field = env.n > 0.0
     # the state's arrays taken out once: every use of a tuple's field inside the loop, and
     # every tuple handed to a compiled function, costs NRT reference counts (an atomic add
     # per array), which made 40 % of a 200-element step
@@ -336,13 +357,16 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
-        field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
-                    holding)
+        if has_field:
+            field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
+                        holding)
         if has_coil:
             gather_bundles(bundles, cs, force)
         # loads on the hub and its kick
-        kick = hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, holding, hs, t,
-                         dt)
+        tau = 0.0
+        if holding:
+            tau = held_loads(axis, coil, cs, pos, force, tau)
+        kick = hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, tau, hs, t, dt)
         if record:  # the row's positions x_n and v_{n-1/2}
             probe_positions(rec, nrec, pos, vel, vprobe)
             record_arms(coil, cs, rec.arm_table[nrec], t, sl.arm)
@@ -361,8 +385,10 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         incr[term.torque_work] = kick.torque * dt * 0.5 * (kick.rate_old + kick.rate_new)
         incr[term.damping_dissipation] = pdamp * dt
         incr[term.contact_dissipation] = dcontact
-        incr[term.gravity_gradient_work] = wgrav + field_work(axis, env, field, tidal, mv, kick,
-                                                              dt)
+        wfield = 0.0
+        if has_field:
+            wfield = field_work(axis, env, field, tidal, mv, kick, dt)
+        incr[term.gravity_gradient_work] = wgrav + wfield
         theta = hub_angle[0]
         if record:  # the row of step n: mean velocities, energies, momenta
             if vec is not None:
@@ -382,8 +408,9 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         step_no[0] = step + 1
         time_now[0] = (step + 1) * dt
         # tied and held nodes with the hub; the fronts the arms pull off; bundles due
-        place_bound(axis, body, hub, coil, cs, rs, pos, vel, hub_angle[0], kick.rate_new,
-                    holding)
+        place_bound(axis, body, hub, coil, cs, rs, pos, vel, hub_angle[0], kick.rate_new)
+        if holding:
+            place_coil(axis, coil, cs, pos, vel, hub_angle[0], kick.rate_new)
         j_eff = hub_inertia[0]
         if holding:
             j_eff = release(axis, body, elems, nodes, hub, coil, cs, rs, mv, j_eff,
