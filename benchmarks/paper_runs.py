@@ -26,7 +26,8 @@ from spinweb_fe.run.driver import run_case
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT = ["paper_free_arms", "paper_free_arms_eq7", "paper_free_web", "paper_two_stage_web",
-           "paper_payout_web", "paper_feedback_web", "paper_ramp_web", "tri_ramp_web",
+           "paper_payout_web", "paper_reel_arms", "paper_brake_arms",
+           "paper_feedback_web", "paper_ramp_web", "tri_ramp_web",
            "paper_free_arms_stiff", "paper_free_arms_eq7_stiff", "paper_free_web_stiff",
            "paper_feedback_web_stiff", "paper_ramp_web_stiff"]
 

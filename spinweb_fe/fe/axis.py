@@ -20,11 +20,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spinweb_fe.fe.coil import gather_bundles, held_moment, place_held, scatter_bundles
+from spinweb_fe.fe.coil import (gather_bundles, held_moment, place_held, place_levels,
+                                scatter_bundles)
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
-from spinweb_fe.fe.payout import (device_target, line_energy, line_pairing, locate_devices,
-                                  move_line, rest_ref)
+from spinweb_fe.fe.line import line_energy, line_pairing
+from spinweb_fe.fe.payout import device_target, locate_devices, move_line, rest_ref
 from spinweb_fe.fe.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
@@ -408,17 +409,21 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
     locate_devices(coil, cs, pose)
     out = np.zeros(7)
     steps = np.empty((coil.test_elem.shape[0] + 1, 3))
+    moved = False
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
         if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
             continue
         if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv.pos, pose, t)
+            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
             if s_new >= cs.s_dev[k]:
                 cs.dev_speed[k] = 0.0
                 continue
         else:
             s_new = cs.s_dev[k]
+        # the held nodes the energies count turn with the hub's rate now (every held node
+        # and the tied ones follow once, after the last arm)
+        place_levels(coil, cs, mv.pos, mv.vel, hs.angle[0], w, k, lev, lev)
         e0 = line_energy(coil, cs, k, elems, mv, lev, lev) + 0.5 * j * w * w
         steps[0, 0] = -1.0
         e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
@@ -433,11 +438,14 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
         j -= rest0 + out[6]
         w += out[5] / j  # the moment of the device's reaction about the axis
         pose[6, 2] = w
-        place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
-        place_held(coil, cs, mv.pos, mv.vel, hs.angle[0], w)
+        moved = True
+        place_levels(coil, cs, mv.pos, mv.vel, hs.angle[0], w, k, lev, lev1)
         e1 = (line_energy(coil, cs, k, elems, mv, lev, lev1) + 0.5 * j * w * w
               + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
         cs.dev_work[k] += e1 - e0
+    if moved:
+        place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
+        place_held(coil, cs, mv.pos, mv.vel, hs.angle[0], w)
     hs.rate[0], hs.inertia[0] = w, j
 
 

@@ -23,8 +23,8 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.coil import gather_bundles, release_fronts, scatter_bundles
-from spinweb_fe.fe.payout import (device_target, line_energy, line_pairing, locate_devices,
-                                  move_line)
+from spinweb_fe.fe.line import line_energy, line_pairing
+from spinweb_fe.fe.payout import device_target, locate_devices, move_line
 from spinweb_fe.fe.contact import contact_free
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
@@ -278,7 +278,7 @@ def body_devices(coil, body, cs, elems, nodes, hub, rs, mv, hs, t, dt):
         if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
             continue
         if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv.pos, pose, t)
+            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
             if s_new >= cs.s_dev[k]:
                 cs.dev_speed[k] = 0.0
                 continue

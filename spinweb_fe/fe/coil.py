@@ -219,22 +219,30 @@ def any_held(arm_ptr, front):
 
 
 @njit(cache=True)
-def place_held(coil, cs, pos, vel, theta, omega):
-    """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""
+def place_levels(coil, cs, pos, vel, theta, omega, k, lo, hi):
+    """The held nodes of arm k's levels lo..hi (those at or behind its front) move with
+    the hub, as :func:`place_held` moves them all."""
     c = np.cos(theta)
     s = np.sin(theta)
+    a = max(lo, coil.arm_ptr[k] + cs.front[k])
+    b = min(hi + 1, coil.arm_ptr[k + 1])
+    for p in range(coil.level_ptr[a] if a < b else 0, coil.level_ptr[b] if a < b else 0):
+        i = coil.level_nodes[p]
+        x = c * coil.level_ref[p, 0] - s * coil.level_ref[p, 1]
+        y = s * coil.level_ref[p, 0] + c * coil.level_ref[p, 1]
+        pos[i, 0] = x
+        pos[i, 1] = y
+        pos[i, 2] = coil.level_ref[p, 2]
+        vel[i, 0] = -omega * y
+        vel[i, 1] = omega * x
+        vel[i, 2] = 0.0
+
+
+@njit(cache=True)
+def place_held(coil, cs, pos, vel, theta, omega):
+    """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""
     for k in range(coil.arm_ptr.shape[0] - 1):
-        a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
-        for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
-            i = coil.level_nodes[p]
-            x = c * coil.level_ref[p, 0] - s * coil.level_ref[p, 1]
-            y = s * coil.level_ref[p, 0] + c * coil.level_ref[p, 1]
-            pos[i, 0] = x
-            pos[i, 1] = y
-            pos[i, 2] = coil.level_ref[p, 2]
-            vel[i, 0] = -omega * y
-            vel[i, 1] = omega * x
-            vel[i, 2] = 0.0
+        place_levels(coil, cs, pos, vel, theta, omega, k, 0, coil.arm_ptr[k + 1])
 
 
 @njit(cache=True)

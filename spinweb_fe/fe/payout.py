@@ -37,6 +37,11 @@ from spinweb_fe.fe.law import length_strain, rate
 #: the last time of a constant law's table [s]: value v from 0 up to here
 HORIZON = 1e9
 FREE, GATE, REEL, BRAKE = 0, 1, 2, 3
+#: the brake's return mapping: at most this many tension evaluations per arm and step
+SLIP_ITERATIONS = 40
+#: the brake's line runs through D at most this many times as fast as its taut material
+#: leaves D
+SLIP_SPEED = 2.0
 
 
 def rate_table(rate: float):
@@ -86,6 +91,17 @@ def _device(name, rule, what=""):
     return check
 
 
+def _tethers_only(rule):
+    def check(tables):
+        if tables.get("web") is not None and tables["stowage"]["payout"] == "brake":
+            return "stowage.payout", ("the brake is available on tether scenes only: on a "
+                                      "web's gathered levels (many elements leave D at "
+                                      "once) its slip adds energy (docs/solver.md); use "
+                                      "the reel (payout = 'rate')")
+        return rule(tables)
+    return check
+
+
 _LENGTH = (Param("payout_rate", "m/s", "pos", "payout = gate or rate: paid-out length "
                  "rate t"),
            Param("payout_length", "s, m", None, "payout = gate or rate: [[t, L], ...] "
@@ -109,7 +125,8 @@ PAYOUTS = registry(
                  Param("brake_force_table", "s, N", None, "payout = brake: [[t, N], ...] "
                        "brake force N at time t, linear between the points", kind="table")),
            need=(("brake_force", "brake_force_table"),),
-           check=_device("brake", _table_rule("brake_force_table", "forces", False), "brake"),
+           check=_device("brake", _tethers_only(_table_rule("brake_force_table", "forces",
+                                                             False)), "brake"),
            analytic="the braking regime: stick (the arm pivots about its departure point) "
                     "and slip (the tension there equals the brake force)"),
 )
@@ -185,7 +202,7 @@ def device_forces(coil, cs, elems, pos, vel, work, record, broken):
     return dse, dpow, tmax
 
 
-@njit(cache=True)
+@njit(inline="always")
 def device_point(coil, k, lev, s):
     """(3,) hub-frame position of arm k's departure point D when its front level is
     ``lev`` and the line at D has arm coordinate s: between the front level's place on the
@@ -228,7 +245,17 @@ def _hub_velocity(pose, x):
                                w[0] * d[1] - w[1] * d[0]])
 
 
-@njit(cache=True)
+@njit(inline="always")
+def _hub_velocity3(pose, x0, x1, x2):
+    """:func:`_hub_velocity` at (x0, x1, x2) as three floats (no array: the device's inner
+    loops run every step)."""
+    w, X = pose[6], pose[4]
+    d0, d1, d2 = x0 - X[0], x1 - X[1], x2 - X[2]
+    return (pose[5, 0] + (w[1] * d2 - w[2] * d1), pose[5, 1] + (w[2] * d0 - w[0] * d2),
+            pose[5, 2] + (w[0] * d1 - w[1] * d0))
+
+
+@njit(inline="always")
 def rest_ref(coil, k, lev):
     """(3,) hub-frame place of the mass arm k's device holds while ``lev`` is its front: the
     next outer level's place on the coil (where the outer halves it holds came from; the
@@ -282,14 +309,15 @@ def _release(coil, cs, k, nodes, mass, inv_mass, lev):
     return j
 
 
-@njit(cache=True)
-def brake_target(coil, cs, k, lev, elems, pos, pose, force):
+@njit(inline="always")
+def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
     """The line coordinate at D after the brake's step: the line slips while it pulls away
     from the hub at D (the pull of the front level's elements has an outward part, along
     D's radial from the hub axis of ``pose``) and its tension (the outer nodes at ``pos``, D
     where the line's coordinate puts it on the coil) exceeds ``force`` [N], to where the
-    tension equals it (a return mapping: Newton on the tension, from the stuck state; it
-    stops at the front level's coordinate). A line that lies along the hub or wraps on it
+    tension equals it (a return mapping: Newton on the tension from the stuck state, kept
+    inside a bracket of the slip and bisecting where it would leave it; it stops at the
+    front level's coordinate). A line that lies along the hub or wraps on it
     stays: the coil holds it, as the free payout's does."""
     s_old, s_f = cs.s_dev[k], coil.level_coord[lev]
     x_d = cs.dev_x[k]
@@ -297,8 +325,12 @@ def brake_target(coil, cs, k, lev, elems, pos, pose, force):
     ax = np.array([pose[0, 2], pose[1, 2], pose[2, 2]])
     r = x_d - c
     r = r - (r[0] * ax[0] + r[1] * ax[1] + r[2] * ax[2]) * ax  # D's radial
-    x = 0.0
-    for it in range(coil.test_ptr[lev + 1] - coil.test_ptr[lev] + 4):
+    pos, vel = mv.pos, mv.vel
+    vd0, vd1, vd2 = _hub_velocity3(pose, x_d[0], x_d[1], x_d[2])
+    level = s_old - s_f
+    x, lo, hi = 0.0, 0.0, level  # the slip and its bracket: tension above, below
+    n0, cap, v_max, stretch = 0.0, level, 0.0, 0.0
+    for it in range(SLIP_ITERATIONS):
         if it > 0:
             x_d = _world(pose, device_point(coil, k, lev, s_old - x))
         n, slope, out = 0.0, 0.0, 0.0
@@ -313,87 +345,61 @@ def brake_target(coil, cs, k, lev, elems, pos, pose, force):
                 n += k_e * (d - ell)
                 slope += k_e * elems.rest_len[e] / (s_to - s_f)
                 out += k_e * (d - ell) / d * (u[0] * r[0] + u[1] * r[1] + u[2] * r[2])
-        if it == 0 and out <= 0.0:  # along the hub or wrapping on it: the coil holds
+                if it == 0:  # how fast the taut line's material leaves D
+                    v_away = ((vel[b, 0] - vd0) * u[0] + (vel[b, 1] - vd1) * u[1]
+                              + (vel[b, 2] - vd2) * u[2]) / d
+                    v_max = max(v_max, v_away)
+                    stretch = max(stretch, d - ell)
+        if it == 0:
+            if out <= 0.0 or n <= force:  # along the hub or below the force: stuck
+                break
+            n0 = n
+            # the line slips through D by at most its largest stretch (what the brake
+            # relieves) and SLIP_SPEED times the step's travel of its taut material away
+            # from D: a return mapping of many elements (a web's gathered level) would
+            # otherwise jump a whole level in a step and hand the passing mass that speed
+            cap = min(level, stretch + SLIP_SPEED * v_max * dt)
+            hi = cap
+            if cap <= 0.0:
+                break
+        if abs(n - force) <= 1e-12 * force:
             break
-        if abs(n - force) <= 1e-12 * force or slope == 0.0 or (it == 0 and n <= force):
+        if n > force:
+            lo = x
+        else:
+            hi = x
+        # Newton on the rest lengths' part of the slope, kept inside the bracket (D's own
+        # motion along the coil also changes the stretch: where the line wraps on the hub
+        # a bare Newton step overshoots into the slack)
+        step = (n - force) / slope if slope > 0.0 else hi - x
+        x_new = x + step
+        if not (lo < x_new < hi):
+            x_new = 0.5 * (lo + hi)
+        if hi - lo <= 1e-12 * (s_old - s_f + 1.0):
+            # above the force over the whole level: it all passes (the next level's
+            # elements take over) if the slip relieves the line; where it does not (the
+            # line lies along the coil, D's slide lengthens it as fast as it pays out) the
+            # coil holds it. Else the last slip with the tension above the force.
+            if hi == level:
+                x = hi if n < n0 else 0.0
+            elif hi == cap:  # above the force up to the speed limit
+                x = cap
+            else:
+                x = lo
             break
-        x = max(x + (n - force) / slope, 0.0)
+        x = x_new
     return max(s_old - x, s_f)
 
 
-@njit(cache=True)
-def device_target(coil, cs, k, lev, elems, pos, pose, t):
+@njit(inline="always")
+def device_target(coil, cs, k, lev, elems, mv, pose, t, dt):
     """Where arm k's line at D goes in this step (its arm coordinate, never back): the
     reel's law, or the brake's return mapping at its force at time t (``pose``: the hub's,
     see :func:`locate_devices`)."""
     if coil.payout_code == REEL:
         return min(cs.s_dev[k], coil.arm_end[k] - law_value(coil.law_t, coil.law_v, t))
-    return brake_target(coil, cs, k, lev, elems, pos, pose,
-                        law_value(coil.law_t, coil.law_v, t))
-
-
-@njit(cache=True)
-def _pull(coil, cs, k, elems, pos, lev, q):
-    """(the inner end's place, the force on the outer node) of arm k's free element q of
-    level ``lev``: from D at rest length phi L0 if ``lev`` is the front, else from its
-    held node at L0 (a spring of E A / L0 on its stretch)."""
-    e, b = coil.test_elem[q], coil.test_to[q]
-    ell = elems.rest_len[e]
-    xa = pos[coil.test_from[q]]
-    if lev == coil.arm_ptr[k] + cs.front[k]:
-        ell *= _frac(coil.test_to_coord[q], coil.level_coord[lev], cs.s_dev[k])
-        xa = cs.dev_x[k]
-    r = pos[b] - xa
-    d = np.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2 + 1e-300)
-    return xa, -(elems.ea[e] * elems.inv_rest[e] * max(d - ell, 0.0) / d) * r
-
-
-@njit(cache=True)
-def line_energy(coil, cs, k, elems, mv, lo, hi):
-    """Kinetic energy of the nodes of arm k's levels lo - 1 .. hi (their masses now) and
-    strain energy of the free elements of levels lo .. hi [J]: the device's elements (of
-    the front level) from D at their rest length phi L0, the others at L0."""
-    pos, vel, mass = mv.pos, mv.vel, mv.mass
-    first, end = coil.arm_ptr[k], coil.arm_ptr[k + 1]
-    e_kin, e_str = 0.0, 0.0
-    for lev in range(max(lo - 1, first), min(hi + 1, end)):
-        for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
-            i = coil.level_nodes[p]
-            e_kin += 0.5 * mass[i] * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-        if lev < lo:
-            continue
-        for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
-            e = coil.test_elem[q]
-            _, f = _pull(coil, cs, k, elems, pos, lev, q)
-            n = np.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
-            e_str += 0.5 * n * n / (elems.ea[e] * elems.inv_rest[e])
-    return e_kin + e_str
-
-
-@njit(cache=True)
-def line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps):
-    """sum f . (dx_b - dx_a) over the free elements of arm k's levels lev and lev + 1: the
-    force on the outer node times the step's displacement of the outer node (dt v, from
-    ``steps`` (T, 3), written on the first call: negative ``steps[0, 0]`` marks it unwritten)
-    less its inner end's (dt times the hub's velocity at D or at the held node now). Half
-    the change of this sum over the device's update is the part of the device's work the
-    leapfrog credits to the step: with it the device's work is the midpoint rule."""
-    out = 0.0
-    j = 0
-    hi = min(lev + 2, coil.arm_ptr[k + 1])
-    fresh = steps[0, 0] < 0.0
-    for lv in range(lev, hi):
-        for q in range(coil.test_ptr[lv], coil.test_ptr[lv + 1]):
-            xa, f = _pull(coil, cs, k, elems, mv.pos, lv, q)
-            if fresh:
-                for d in range(3):
-                    steps[j + 1, d] = dt * mv.vel[coil.test_to[q], d]
-            va = _hub_velocity(pose, xa)
-            out += (f[0] * (steps[j + 1, 0] - dt * va[0]) + f[1] * (steps[j + 1, 1] - dt * va[1])
-                    + f[2] * (steps[j + 1, 2] - dt * va[2]))
-            j += 1
-    steps[0, 0] = 1.0
-    return out
+    return brake_target(coil, cs, k, lev, elems, mv, pose,
+                        law_value(coil.law_t, coil.law_v, t), dt)
 
 
 @njit(cache=True)
@@ -428,6 +434,8 @@ def move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out):
     while lev < end:
         s_f = coil.level_coord[lev]
         s_stop = max(s_new, s_f)
+        x_m = _world(pose, rest_ref(coil, k, lev))  # where the device's mass is held
+        vm0, vm1, vm2 = _hub_velocity3(pose, x_m[0], x_m[1], x_m[2])
         for q in range(coil.test_ptr[lev], coil.test_ptr[lev + 1]):
             f0 = _frac(coil.test_to_coord[q], s_f, s)
             f1 = _frac(coil.test_to_coord[q], s_f, s_stop)
@@ -435,19 +443,28 @@ def move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out):
             if dm <= 0.0:
                 continue
             b = coil.test_to[q]
-            r = pos[b] - x_d
-            size = np.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
+            r0, r1, r2 = pos[b, 0] - x_d[0], pos[b, 1] - x_d[1], pos[b, 2] - x_d[2]
+            size = np.sqrt(r0 ** 2 + r1 ** 2 + r2 ** 2)
             u = (f1 - f0) * elems.rest_len[coil.test_elem[q]] / dt  # line speed through D
-            v_in = v_d + (u / size if size > 0.0 else 0.0) * r
+            c = u / size if size > 0.0 else 0.0
+            v0, v1, v2 = v_d[0] + c * r0, v_d[1] + c * r1, v_d[2] + c * r2  # the line's at D
             m1 = mass[b] + dm
-            for d in range(3):
-                vel[b, d] = (mass[b] * vel[b, d] + dm * v_in[d]) / m1
+            vel[b, 0] = (mass[b] * vel[b, 0] + dm * v0) / m1
+            vel[b, 1] = (mass[b] * vel[b, 1] + dm * v1) / m1
+            vel[b, 2] = (mass[b] * vel[b, 2] + dm * v2) / m1
             mass[b] = m1
             inv_mass[b] = 1.0 / m1
-            x_m = _world(pose, rest_ref(coil, k, lev))  # where the device's mass is held
-            J = dm * (v_in - _hub_velocity(pose, x_m))
-            out[0:3] += J
-            out[3:6] -= np.cross(x_m, J) + np.cross(pos[b] - x_m, dm * v_in)
+            # the impulse J on the line and the angular impulse that keeps K on the hub:
+            # -(x_m x J + (x_b - x_m) x dm v_in)
+            j0, j1, j2 = dm * (v0 - vm0), dm * (v1 - vm1), dm * (v2 - vm2)
+            out[0] += j0
+            out[1] += j1
+            out[2] += j2
+            p0, p1, p2 = pos[b, 0] - x_m[0], pos[b, 1] - x_m[1], pos[b, 2] - x_m[2]
+            g0, g1, g2 = dm * v0, dm * v1, dm * v2
+            out[3] -= (x_m[1] * j2 - x_m[2] * j1) + (p1 * g2 - p2 * g1)
+            out[4] -= (x_m[2] * j0 - x_m[0] * j2) + (p2 * g0 - p0 * g2)
+            out[5] -= (x_m[0] * j1 - x_m[1] * j0) + (p0 * g1 - p1 * g0)
             cs.dev_rest[k] -= dm
         s = s_stop
         if s > s_f:
