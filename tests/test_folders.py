@@ -123,11 +123,69 @@ def test_the_lock_names_its_run_and_is_gone_after_it(tmp_path):
         assert info["pid"] == os.getpid() and info["host"] and info["started"]
         with pytest.raises(RunError, match=rf"in use by another run \(pid {os.getpid()}"):
             FolderLock(folder).acquire()
-    assert holder(folder) is None and not (folder / LOCK_NAME).exists()
+    assert holder(folder) is None and not folder.exists()  # a bare claim leaves no folder
+    folder.mkdir()
     (folder / LOCK_NAME).write_text(json.dumps({"pid": 1}))  # left by a killed run
     assert (folder / LOCK_NAME).exists() and holder(folder) is None  # a stale lock
     with FolderLock(folder):  # a stale lock file does not stop the next run
         assert holder(folder)["pid"] == os.getpid()
+
+
+def test_the_folder_is_claimed_before_the_set_up(tmp_path, good_run, monkeypatch, capsys):
+    """Issue #27, item 4: a second run into a folder whose run is still in its set-up (the
+    mesh, numba's compile) is refused at once with one line, and the first run goes on; an
+    earlier result stays untouched until the first run's own rows replace it. The second
+    run is started from inside the first one's set-up (a warm cache: the compile is the
+    set-up's longest part; the cold-cache case is the next test)."""
+    import spinweb_fe.run.driver as driver
+    from spinweb_fe.io.folder import holder
+
+    out, before = good_run
+    real, seen = driver.prepare, {}
+
+    def prepare_and_try_a_second_run(case):
+        seen["holder"] = holder(out)
+        seen["digest"] = digest(out)
+        seen["rc"] = main(["run", *FAST, "-o", str(out)])
+        seen["err"] = capsys.readouterr().err
+        return real(case)
+
+    monkeypatch.setattr(driver, "prepare", prepare_and_try_a_second_run)
+    assert main(["run", *FAST, "-o", str(out)]) == 0
+    assert seen["holder"]["pid"] == os.getpid() and seen["rc"] == 1
+    assert re.fullmatch(rf"spinweb: run failed: {re.escape(str(out))} is in use by another "
+                        r"run \(pid \d+ on .+\); nothing was changed", one_line(seen["err"]))
+    assert {k: v for k, v in seen["digest"].items() if k != LOCK_NAME} == before
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_a_compiling_run_holds_its_folder(tmp_path):
+    """The same with a cold numba cache, two processes: while the first compiles (the lock
+    is there, no result yet), the second exits 1 at once; the first then completes."""
+    out = tmp_path / "cold"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    cmd = [sys.executable, "-m", "spinweb_fe", "run", *FAST, "-o", str(out)]
+    first = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out / LOCK_NAME).exists():
+            assert first.poll() is None and time.monotonic() < deadline, first.communicate()
+            time.sleep(0.02)
+        assert not (out / "results.h5").exists()  # still in its set-up
+        t0 = time.monotonic()
+        second = subprocess.run([sys.executable, "-m", "spinweb_fe", "run", *FAST, "-o",
+                                 str(out)], capture_output=True, text=True, timeout=120)
+        assert second.returncode == 1 and "is in use by another run" in second.stderr
+        assert not (out / "results.h5").exists() and first.poll() is None  # still compiling
+        assert time.monotonic() - t0 < 30  # at once: a process start, no compile
+        _, err = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.communicate()
+    assert first.returncode == 0, err
+    assert (out / "results.h5").exists() and not (out / LOCK_NAME).exists()
 
 
 def test_an_earlier_result_is_replaced_only_after_the_first_flush(tmp_path, good_run,

@@ -100,8 +100,10 @@ class FolderLock:
         self.folder = Path(folder)
         self.path = self.folder / LOCK_NAME
         self.fd = None
+        self.created = False
 
     def acquire(self):
+        self.created = not self.folder.exists()
         self.folder.mkdir(parents=True, exist_ok=True)
         deadline = time.monotonic() + LOCK_WAIT_S
         while True:
@@ -138,6 +140,11 @@ class FolderLock:
         finally:
             os.close(self.fd)
             self.fd = None
+        if self.created:  # a claim that wrote nothing leaves no folder behind
+            try:
+                self.folder.rmdir()
+            except OSError:
+                pass
 
     def __enter__(self):
         return self.acquire()

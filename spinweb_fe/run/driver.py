@@ -1,10 +1,12 @@
 """A case to a result folder: checks, scene, estimate, the folder's lock, writers, the event
 loop, and the run's final status (docs/robustness.md).
 
-Everything that can refuse a run (arguments, $SPINWEB_THREADS, the folder's permissions, a
-live run in the folder, the mesh, the estimate against the budget) is checked before the
-folder is touched; set-up stops at once on SIGINT / SIGTERM. Then the folder's lock is
-taken and an earlier result is moved aside until this run's first rows are on disk.
+The arguments, $SPINWEB_THREADS, the folder's permissions and a live run in the folder are
+checked first; then the run claims the folder (its lock, ``run.lock``: a second run into it
+is refused at once, while this one compiles too), and the set-up (the mesh, the compile,
+the estimate against the budget) runs; a set-up that refuses the run, or a SIGINT /
+SIGTERM during it, releases the claim and changes nothing else. Then an earlier result is
+moved aside until this run's first rows are on disk.
 """
 
 from __future__ import annotations
@@ -115,32 +117,35 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
         raise busy(out_dir, info)
     check_memory(case, force)
     with StopSignals() as stop:
-        with stop.immediate():  # set-up writes nothing: a signal stops it at once
-            mesh, model, control, state, dt = prepare(case)
-            if resume is not None:
-                state = _resumed_state(case, model, dt, resume)
-            threads = choose_threads(model, threads)
-            rec_every = max(1, round(case.output.history_dt / dt))
-            notice = progress and sys.stderr.isatty()  # at a terminal: say what the wait is
-            if notice:
-                sys.stderr.write("step loop: loading it from numba's cache, or compiling it "
-                                 "(the first run of a kind of scene: 10-20 s) ...\r")
-                sys.stderr.flush()
-            rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every)
-            if notice:
-                sys.stderr.write("\x1b[2K")  # clear that line
-            est = estimate(case, model, dt, step0, rate, checkpoint_dt > 0)
-            check_budget(case, est, out_dir, force)
-            log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), "
-                     "%d steps%s", case.title or case.source, model.n_nodes, model.n_elems,
-                     dt, model.dt_critical, dt / model.dt_critical, step0 + est.steps,
-                     f", from step {step0}" if resume is not None else "")
-            for line in est.lines(threads):
-                log.info("%s", line)
-            if compile_s > 2.0:
-                log.info("step loop: compiled in %.1f s (numba; later runs of such a scene "
-                         "load it from the cache)", compile_s)
+        # the folder is claimed before the set-up (a second run into it is refused at once,
+        # even while this one compiles); a refused set-up releases the claim and leaves no
+        # folder it created
         with FolderLock(out_dir):
+            with stop.immediate():  # set-up writes nothing: a signal stops it at once
+                mesh, model, control, state, dt = prepare(case)
+                if resume is not None:
+                    state = _resumed_state(case, model, dt, resume)
+                threads = choose_threads(model, threads)
+                rec_every = max(1, round(case.output.history_dt / dt))
+                notice = progress and sys.stderr.isatty()  # at a terminal: what the wait is
+                if notice:
+                    sys.stderr.write("step loop: loading it from numba's cache, or compiling "
+                                     "it (the first run of a kind of scene: 10-20 s) ...\r")
+                    sys.stderr.flush()
+                rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every)
+                if notice:
+                    sys.stderr.write("\x1b[2K")  # clear that line
+                est = estimate(case, model, dt, step0, rate, checkpoint_dt > 0)
+                check_budget(case, est, out_dir, force)
+                log.info("%s: %d nodes, %d elements, dt = %.4g s (critical %.4g s, cfl %.3g), "
+                         "%d steps%s", case.title or case.source, model.n_nodes, model.n_elems,
+                         dt, model.dt_critical, dt / model.dt_critical, step0 + est.steps,
+                         f", from step {step0}" if resume is not None else "")
+                for line in est.lines(threads):
+                    log.info("%s", line)
+                if compile_s > 2.0:
+                    log.info("step loop: compiled in %.1f s (numba; later runs of such a scene "
+                             "load it from the cache)", compile_s)
             aside = Aside(out_dir)
             if resume is None:
                 Aside.recover(out_dir)
