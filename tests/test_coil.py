@@ -243,3 +243,24 @@ def test_the_held_web_uncoils_with_the_eq7_tethers():
     assert L < 0.05 and w < 0.10 and c < 0.01
     L, w, c = out["loose"]
     assert L > 0.10 and w > 0.5 and c > 0.3
+
+
+@pytest.mark.parametrize("length, taut", [(1.5, False), (1.99, False), (2.01, True)])
+def test_a_level_is_pulled_off_only_by_a_taut_element_of_any_length(length, taut):
+    """fe.coil.pulls on elements of 2 m (25 per 50 m tether; every tether case has 1 m
+    elements, where a stretch test without its square passes unseen): the front level's free
+    element, pointing outward from the hub, pulls the level off only when it is longer than
+    its rest length, and never when it points inward."""
+    case = case_mod.load(CASES / "paper_free_arms_stiff.toml", ["tethers.elements=25"])
+    model = prepare(case)[1]
+    coil, elems = model.coil, model.elements
+    lev = coil.arm_ptr[0] + 1  # the first held level of arm 0 (level 0 is the tip)
+    q = coil.test_ptr[lev]
+    e, a, b = coil.test_elem[q], coil.test_from[q], coil.test_to[q]
+    assert abs(elems.rest_len[e] - 2.0) < 1e-12
+    pos = np.zeros((model.n_nodes, 3))
+    pos[a] = [case.hub.radius, 0.0, 0.0]
+    pos[b] = pos[a] + [length, 0.0, 0.0]  # radially outward
+    assert coil_mod.pulls(coil, elems, pos, lev) is taut
+    pos[b] = pos[a] - [0.6 * length, 0.8 * length, 0.0]  # inward, into the hub
+    assert coil_mod.pulls(coil, elems, pos, lev) is False

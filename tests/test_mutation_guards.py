@@ -8,6 +8,7 @@ applies such changes to a copy of the package and checks that these tests catch 
 import dataclasses
 import logging
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -531,3 +532,21 @@ def test_step_count_limit():
         prepare(case_mod.loads(text.format(end=1e7)))
     assert err.value.key == "time.end"
     assert "more than the limit 1e+10" in err.value.reason
+
+
+def test_every_planted_bug_still_has_its_target():
+    """tests/mutate.py plants each bug by replacing a line that must occur exactly once in
+    its file: a refactor that moves the line would silently turn the mutant into an error
+    of the script (15 of them had gone stale when the two step loops became one)."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("spinweb_mutate",
+                                                  Path(__file__).parent / "mutate.py")
+    mutate = importlib.util.module_from_spec(spec)
+    sys.modules["spinweb_mutate"] = mutate  # its dataclasses look their module up
+    spec.loader.exec_module(mutate)
+    root = Path(__file__).parent.parent
+    stale = [(m.id, m.path) for m in mutate.MUTANTS
+             if not (root / m.path).exists() or (root / m.path).read_text().count(m.old) != 1]
+    assert not stale, stale

@@ -1,6 +1,7 @@
 """Tether scenes: counts, roots on the rim, coiling without stretch."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -50,3 +51,28 @@ def test_invalid_arguments():
         tethers(4, H, 10, R0, 1.0, "star")
     with pytest.raises(ValueError, match="wrap"):
         tethers(4, H, 10, R0, 1.0, "coiled", "sideways")
+
+
+def test_eq7_tethers_carry_the_profiles_exact_masses():
+    """tethers.arm_mass (the paper's Eq. 7 line density rho(s) = 2 m (H - s) / H^2): every
+    element holds the exact integral of the profile over its length and each tether's cable
+    sums to arm_mass (to round-off, 1e-12 relative; evaluating the density at an element's
+    end instead of its middle is 2 % off in the sum and m L^2 / H^2 per element)."""
+    from spinweb_fe import case as case_mod
+    from spinweb_fe.case.scene import prepare
+
+    case = case_mod.load(Path(__file__).parent.parent / "cases" / "paper_free_arms_eq7.toml",
+                         ["tethers.elements=20"])
+    mesh, model = prepare(case)[:2]
+    m, H = case.tethers.arm_mass, mesh.arm_length
+    s = mesh.node_arm_coord[mesh.elem_nodes]
+    sa, sb = s.min(axis=1), s.max(axis=1)
+    exact = 2.0 * m / H ** 2 * ((H * sb - 0.5 * sb ** 2) - (H * sa - 0.5 * sa ** 2))
+    lumped = np.zeros(mesh.n_nodes)
+    np.add.at(lumped, mesh.elem_nodes[:, 0], 0.5 * exact)
+    np.add.at(lumped, mesh.elem_nodes[:, 1], 0.5 * exact)
+    cable = model.nodes.mass - mesh.node_point_mass  # the point (tip) masses out
+    assert np.allclose(cable, lumped, rtol=1e-12, atol=1e-12 * m)
+    for arm in range(case.tethers.count):
+        on_arm = mesh.node_arm == arm
+        assert abs(cable[on_arm].sum() - m) < 1e-12 * m
