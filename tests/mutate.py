@@ -291,6 +291,11 @@ MUTANTS = (
            "taut = (dx * dx + dy * dy + dz * dz) * elems.inv_rest[e] > 1.0",
            "the release's taut test without the square of 1/L0 (hidden by 1 m elements)",
            ("tests/test_coil.py",)),
+    Mutant("free_start_full_torque_step", "spinweb_fe/fe/body.py",
+           "rs.momentum[:] = rs.momentum - 0.5 * dt * value * b3",
+           "rs.momentum[:] = rs.momentum - dt * value * b3",
+           "free hub's start: a whole step of the control torque's impulse, not a half",
+           ("tests/test_free_hub.py",)),
 )
 
 
@@ -314,7 +319,8 @@ def make_copy(dest: Path) -> Path:
 def environment(copy: Path, cache: Path) -> dict:
     env = dict(os.environ)
     env.update(PYTHONPATH=str(copy), NUMBA_CACHE_DIR=str(cache), PYTHONDONTWRITEBYTECODE="1",
-               MPLBACKEND="Agg", SPINWEB_THREADS="1")
+               MPLBACKEND="Agg", SPINWEB_THREADS="1",
+               SPINWEB_MUTATION_COPY="1")  # the copy's mutant has, by design, no target
     return env
 
 

@@ -19,6 +19,9 @@ from spinweb_fe.record.history import HISTORY_UNITS
 W0 = 8 * math.pi
 PAPER = ArmParams(n=4, H=50.0, r0=6.3, J_hub=3969.0, m_tip=10.0, m_lin=126.7 / 4)
 ROOT = Path(__file__).resolve().parents[1]
+#: the consistent model's angular momentum and energy balances, relative (measured up to
+#: 4.0e-9 over every law, spin, wrap and the Fig. 8 cases: DOP853 at rtol = atol = 1e-10)
+BALANCE = 6e-9
 
 
 def straight_tension(p: ArmParams, omega: float) -> float:
@@ -226,7 +229,7 @@ def test_all_laws_balance(law, scene):
     h = r.history
     assert not r.stopped and h["time"][-1] == pytest.approx(0.6)
     dk, de = drifts(r)
-    assert np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7
+    assert np.abs(dk).max() < BALANCE and np.abs(de).max() < BALANCE
     if law == "spin_ramp":
         assert h["hub_omega"][-1] == pytest.approx(W0) and np.abs(h["hub_torque"]).max() > 0
         i = int(0.15 / 1e-3)
@@ -242,7 +245,7 @@ def test_wraps_and_spins(extra):
                                  spin="hub" if extra == "spin_hub" else "all"))
     r = analytic.solve_case(c)
     dk, de = drifts(r)
-    assert np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7
+    assert np.abs(dk).max() < BALANCE and np.abs(de).max() < BALANCE
     phi = r.history["arm_angle"][:, 0]
     if extra == "leading":
         assert phi[0] > HALF_PI
@@ -313,4 +316,4 @@ def test_fig8_cases_run(path):
     c = case_mod.load(path, ["time.end=1.0", "output.history_dt=0.01"])
     r = analytic.solve_case(c)
     dk, de = drifts(r)
-    assert not r.stopped and np.abs(dk).max() < 1e-7 and np.abs(de).max() < 1e-7
+    assert not r.stopped and np.abs(dk).max() < BALANCE and np.abs(de).max() < BALANCE

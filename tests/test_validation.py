@@ -44,14 +44,13 @@ def stiff_tethers_02():
 
 
 def test_stiff_tethers_follow_consistent_model(stiff_tethers_02):
-    # Study (docs/validation.md, table 2.1): 50 elements give 0.099 m / 0.0034 rad over the
-    # uncoiling with the held coil (0.17 m / 0.018 rad loose); tests/test_coil.py holds the
-    # tighter limits of the issue (0.25 m, 0.02 rad), these are the loose-coil era's.
+    # 1.5 x the measured (held coil, 50 elements, 0-0.2 s, arm 0): L 0.057 m, phi 0.0031
+    # rad max, hub rate 0.072 rad/s and tip rate 0.077 rad/s RMS (docs/testing.md)
     _, (err, fe, an) = stiff_tethers_02
-    assert err["L"]["max"] < 0.3            # m, of 31.7 m paid out by 0.2 s
-    assert err["phi"]["max"] < 0.04         # rad, of 5 rad unwound
-    assert err["omega_centre"]["rms"] < 0.5  # rad/s, of a 44 rad/s despin
-    assert err["omega_tip"]["rms"] < 0.6
+    assert err["L"]["max"] < 0.085           # m, of 31.7 m paid out by 0.2 s
+    assert err["phi"]["max"] < 0.0046        # rad, of 5 rad unwound
+    assert err["omega_centre"]["rms"] < 0.11  # rad/s, of a 44 rad/s despin
+    assert err["omega_tip"]["rms"] < 0.12
     # the arm really uncoiled and the hub really despun in both
     assert fe["arm_length"][-1, 0] > 30.0 and an["arm_length"][-1, 0] > 30.0
     assert fe["hub_omega"][-1] < -15.0
@@ -68,7 +67,8 @@ def test_fe_resolves_inertia_errors(stiff_tethers_02):
     p = params_from_case(cs)
     err_c, _, _ = errors(cs, (0.0, 0.316), fe=fe)
     err_j, _, _ = errors(cs, (0.0, 0.316), fe=fe, params=dataclasses.replace(p, J_hub=1.1 * p.J_hub))
-    assert err_c["L"]["max"] < 0.3 and err_c["phi"]["max"] < 0.04
+    # 1.5 x the measured over the whole uncoiling: L 0.097 m, phi 0.0031 rad
+    assert err_c["L"]["max"] < 0.15 and err_c["phi"]["max"] < 0.0046
     assert err_c["omega_centre"]["rms"] < 0.6 * err_j["omega_centre"]["rms"]
     i = int(round(0.1 / cs.output.history_dt))
     assert fe["arm_length"][i, 0] == pytest.approx(6.3 * 8 * math.pi * 0.1, rel=0.02)
