@@ -103,15 +103,16 @@ def test_a_held_coil_run_conserves_momentum_and_energy():
 
 def test_point_mass_tethers_follow_the_yoyo():
     """Stiff light tethers (0.79 kg each, 10 kg tips) with a held coil against the consistent
-    model over the uncoiling: L within 0.5 % of H, phi within 0.02 rad (max), hub rate
-    within 0.5 % of omega0 (RMS). Measured: 0.097 m, 0.0031 rad, 0.060 rad/s."""
+    model over the uncoiling. Measured: L 0.097 m, phi 0.0031 rad (max), hub rate 0.060 rad/s
+    (RMS); bounds 1.5x those (the issue's targets, 0.5 % of H, 0.02 rad and 0.5 % of omega0,
+    are 2.6-6x looser and would let a real regression through)."""
     cs = case_mod.load(CASES / "paper_free_arms_stiff.toml", ["time.end=0.32"])
     fe = V.fe_run(cs)[0]
     an = V.analytic_twin(cs)[0]
     err = V.error_table(fe, an, {"u": (0.0, V.first_pivot(an))})["u"]
-    assert err["L"]["max"] < 0.005 * 50.0
-    assert err["phi"]["max"] < 0.02
-    assert err["omega_centre"]["rms"] < 0.005 * 8 * math.pi
+    assert err["L"]["max"] < 0.15
+    assert err["phi"]["max"] < 0.0047
+    assert err["omega_centre"]["rms"] < 0.09
 
 
 def test_rate_payout_never_runs_ahead_and_waits(caplog):
