@@ -296,6 +296,11 @@ MUTANTS = (
            "rs.momentum[:] = rs.momentum - dt * value * b3",
            "free hub's start: a whole step of the control torque's impulse, not a half",
            ("tests/test_free_hub.py",)),
+    Mutant("bundle_spine_own_inverse_mass", "spinweb_fe/fe/coil.py",
+           "inv_mass[i] = 1.0 / coil.level_mass[lev] if first else 0.0",
+           "inv_mass[i] = nodes.inv_mass[i] if first else 0.0",
+           "a bundled level's spine node kicked with its own inverse mass, not the level's",
+           ("tests/test_coil.py",)),
 )
 
 

@@ -162,7 +162,7 @@ def bundled_web():
 
 def test_bundled_levels_move_as_one(bundled_web):
     """While bundled, every released level's nodes share one position and velocity, and the
-    spine node carries the level's mass."""
+    spine node carries the level's mass (the sum of its nodes') and its inverse."""
     cs, model, control, state, dt = bundled_web
     coil = model.coil
     assert np.all(state.coil.bundled)
@@ -174,6 +174,12 @@ def test_bundled_levels_move_as_one(bundled_web):
             assert np.all(state.node_vel[nodes] == state.node_vel[nodes[0]])
             assert state.node_mass[nodes[0]] == pytest.approx(coil.level_mass[lev], rel=1e-15)
             assert np.all(state.node_mass[nodes[1:]] == 0)
+            # the inverse mass the kick uses is the level's too (not the spine's own node's)
+            assert state.node_inv_mass[nodes[0]] * coil.level_mass[lev] == pytest.approx(
+                1.0, rel=1e-15)
+            assert coil.level_mass[lev] == pytest.approx(model.nodes.mass[nodes].sum(),
+                                                         rel=1e-12)
+            assert np.all(state.node_inv_mass[nodes[1:]] == 0)
             checked += len(nodes) > 1
     assert checked >= 8
 
