@@ -538,17 +538,12 @@ def test_every_planted_bug_still_has_its_target():
     """tests/mutate.py plants each bug by replacing a line that must occur exactly once in
     its file: a refactor that moves the line would silently turn the mutant into an error
     of the script (15 of them had gone stale when the two step loops became one)."""
-    import importlib.util
     import os
-    import sys
 
     if os.environ.get("SPINWEB_MUTATION_COPY"):  # tests/mutate.py's copy: one line is gone
         pytest.skip("a mutated copy, whose planted line replaced its target")
-    spec = importlib.util.spec_from_file_location("spinweb_mutate",
-                                                  Path(__file__).parent / "mutate.py")
-    mutate = importlib.util.module_from_spec(spec)
-    sys.modules["spinweb_mutate"] = mutate  # its dataclasses look their module up
-    spec.loader.exec_module(mutate)
+    import mutate  # tests/mutate.py: pytest puts tests/ on the path
+
     root = Path(__file__).parent.parent
     stale = [(m.id, m.path) for m in mutate.MUTANTS
              if not (root / m.path).exists() or (root / m.path).read_text().count(m.old) != 1]
