@@ -301,6 +301,11 @@ MUTANTS = (
            "inv_mass[i] = nodes.inv_mass[i] if first else 0.0",
            "a bundled level's spine node kicked with its own inverse mass, not the level's",
            ("tests/test_coil.py",)),
+    Mutant("contact_centre_translates_only", "spinweb_fe/fe/body.py",
+           "hull[2] = c + dt * (rs.velocity + cross(w, c - rs.position))",
+           "hull[2] = c + dt * rs.velocity",
+           "the free hub's predicted centre for contact ignores its turn about the centre of "
+           "mass", ("tests/test_free_hub.py",)),
 )
 
 
