@@ -70,7 +70,6 @@ def test_the_matrix_is_large_enough():
     assert len(keys) >= 20  # many different keys, not one key thirty times
 
 
-@pytest.mark.parametrize("path", BAD + [MISSING], ids=lambda p: p.stem)
 def exit_code(args):
     """main's exit code, or the exception a bad input let through (a traceback instead of
     one line: the assertion on the code then says which)."""
@@ -80,6 +79,7 @@ def exit_code(args):
         return f"{type(exc).__name__}: {exc}"
 
 
+@pytest.mark.parametrize("path", BAD + [MISSING], ids=lambda p: p.stem)
 def test_bad_case_exits_2_and_writes_nothing(path, tmp_path, capsys, good_run):
     fresh = tmp_path / "fresh"
     assert exit_code(["run", str(path), "-o", str(fresh), "--no-progress"]) == 2
