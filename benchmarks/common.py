@@ -1,8 +1,8 @@
 """What the benchmarks share: the problems they time, one timed run, the machine's record.
 
-- ``spinning_web`` / ``full_feature``: the two problems of ``benchmarks.throughput`` (flat
-  QuadQuad web, S = 100 m, Zylon; the coiled paper web with every feature), ``PROBLEMS``
-  by name; ``E``, ``RHO``, ``A``: the cable (Zylon, 1.025e-5 m^2);
+- ``spinning_web`` / ``full_feature`` / ``free_hub``: the problems of
+  ``benchmarks.throughput`` (flat QuadQuad web, S = 100 m, Zylon; the coiled paper web with
+  every feature; the same on a free hub), ``PROBLEMS`` by name; ``E``, ``RHO``, ``A``: the cable (Zylon, 1.025e-5 m^2);
 - ``measure``: the fastest of ``repeat`` runs of one problem, as a JSON-ready dict;
 - ``machine``, ``load_average``, ``wait_for_quiet``: what every benchmark records of the
   shared machine; ``model_bytes``: the bytes the step loop touches.
@@ -37,8 +37,12 @@ def spinning_web(mesh_width, side=100.0):
     return model, free(), state
 
 
-def full_feature(mesh_width, side=100.0):
+def full_feature(mesh_width, side=100.0, motion="fixed_axis"):
+    """The coiled paper web with contact, torque feedback and damping; ``motion`` "free"
+    puts it on a free hub of 100 kg."""
+    hub = '[hub]\n    motion = "free"\n    mass = 100.0' if motion == "free" else ""
     text = f"""
+    {hub}
     [web]
     side = {side}
     mesh_width = {mesh_width}
@@ -59,7 +63,11 @@ def full_feature(mesh_width, side=100.0):
     return model, control, state
 
 
-PROBLEMS = {"spinning-web": spinning_web, "full-feature": full_feature}
+def free_hub(mesh_width, side=100.0):
+    return full_feature(mesh_width, side, motion="free")
+
+
+PROBLEMS = {"spinning-web": spinning_web, "full-feature": full_feature, "free-hub": free_hub}
 
 
 def cpu_model():

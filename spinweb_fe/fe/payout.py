@@ -238,21 +238,20 @@ def _world(pose, r):
 
 
 @njit(inline="always")
-def _hub_velocity(pose, x):
-    w, X = pose[6], pose[4]
-    d = x - X
-    return pose[5] + np.array([w[1] * d[2] - w[2] * d[1], w[2] * d[0] - w[0] * d[2],
-                               w[0] * d[1] - w[1] * d[0]])
-
-
-@njit(inline="always")
 def _hub_velocity3(pose, x0, x1, x2):
-    """:func:`_hub_velocity` at (x0, x1, x2) as three floats (no array: the device's inner
-    loops run every step)."""
+    """The velocity of the hub's material point at (x0, x1, x2), V + omega x (x - X), as
+    three floats (no array: the device's inner loops run every step)."""
     w, X = pose[6], pose[4]
     d0, d1, d2 = x0 - X[0], x1 - X[1], x2 - X[2]
     return (pose[5, 0] + (w[1] * d2 - w[2] * d1), pose[5, 1] + (w[2] * d0 - w[0] * d2),
             pose[5, 2] + (w[0] * d1 - w[1] * d0))
+
+
+@njit(inline="always")
+def _hub_velocity(pose, x):
+    """:func:`_hub_velocity3` at x as a (3,) array."""
+    v0, v1, v2 = _hub_velocity3(pose, x[0], x[1], x[2])
+    return np.array([v0, v1, v2])
 
 
 @njit(inline="always")

@@ -115,21 +115,21 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
 @njit(inline="always")
 def field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field, holding):
     """The gravity gradient's loads at x_n on a scene with a fixed axis (fe.axis.axis_field;
-    a free hub takes the field in its own phases)."""
+    a free hub takes the field in its own phases). The step calls it only for a scene with
+    the field."""
     if axis is not None:
-        if env.n > 0.0:
-            axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
-                       holding)
+        axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
+                   holding)
 
 
 @njit(inline="always")
 def field_work(axis, env, field, tidal, mv, kick, dt):
     """The gravity gradient's work over the step on a scene with a fixed axis [J] (a free
-    hub's is counted in its node pass)."""
+    hub's is counted in its node pass). The step calls it only for a scene with the
+    field."""
     w = 0.0
     if axis is not None:
-        if env.n > 0.0:
-            w = axis_field_work(field, tidal, mv, kick, dt)
+        w = axis_field_work(field, tidal, mv, kick, dt)
     return w
 
 
