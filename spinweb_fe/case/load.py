@@ -61,6 +61,7 @@ class Case:
     source: str = "<string>"
     perturbation: Any = None
     environment: Any = None
+    verdict: Any = None
 
     @property
     def scene(self) -> str:

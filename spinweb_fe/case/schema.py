@@ -15,6 +15,7 @@ from spinweb_fe.fe.coil import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.fe.model import MOTIONS
 from spinweb_fe.fe.payout import PAYOUTS
+from spinweb_fe.record.verdict import DEFAULTS as VERDICT
 
 REQUIRED = object()  # marker: the key has no default
 
@@ -156,6 +157,26 @@ SCHEMA: dict[str, dict[str, Field]] = {
                       "the mean radius 6 371 km (instead of orbit_radius)"),
         "orbit_tilt": F("float", 0.0, "finite", "rad", "gravity gradient: angle of the orbit "
                         "normal from the spin axis +z, about +x"),
+    },
+    "verdict": {
+        "deployed_fraction": F("float", VERDICT["deployed_fraction"], "frac", "", "deployed: "
+                               "every tip at least this share of its deployed distance from "
+                               "the hub axis, and staying there to the end"),
+        "deploy_by": F("float", VERDICT["deploy_by"], "pos", "s", "deployed: by this time "
+                       "(default: any time before the end)"),
+        "recoil": F("float", VERDICT["recoil"], "pos", "", "re-coil: a tip falling back toward "
+                    "the hub from its farthest by more than this share of its arm's "
+                    "deployed length"),
+        "slack_share": F("float", VERDICT["slack_share"], "frac", "", "slack: at most this "
+                         "share of the cable elements without tension at the end"),
+        "swing": F("float", VERDICT["swing"], "pos", "rad", "swing: the largest in-plane "
+                   "swing of an arm after deployment (half the range of phi)"),
+        "flatness": F("float", VERDICT["flatness"], "pos", "", "flatness: the web's largest "
+                      "distance from the hub plane at the end, per deployed arm length"),
+        "energy": F("float", VERDICT["energy"], "pos", "", "energy audit: the balance closed "
+                    "within this share of the energy scale"),
+        "momentum": F("float", VERDICT["momentum"], "pos", "", "momentum audit: K - K0 - "
+                      "torque impulse within this share of max |K|"),
     },
     "time": {
         "end": F("float", REQUIRED, "pos", "s", "end time"),

@@ -22,9 +22,11 @@ from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
 from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
                                       write_checkpoint)
+from spinweb_fe.fe.control import LAWS
 from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
 from spinweb_fe.io.results import ResultWriter
 from spinweb_fe.io.space import DiskGuard
+from spinweb_fe.record import verdict
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
 from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
@@ -207,8 +209,39 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     finally:
         bar.end(status)  # the progress line ends even when the loop raised
         guard.release()  # room for the last attributes and the close
+        _judge(writer, case, model, state, status)
         _finish(writer, steps=int(state.step[0]), status=status)
     return res
+
+
+def _judge(writer, case, model, state, status):
+    """The run's verdict (record.verdict) into results.h5 and the log; a failure here is
+    reported and leaves the file as it is (the run's own error, if any, goes on)."""
+    from spinweb_fe.io.h5 import history_of
+
+    try:
+        writer.drain()
+        h = history_of(writer.h5)
+        if not h:
+            return
+        broken = state.strength.broken if model.strength.rupture else None
+        crits = verdict.judge(
+            h, verdict.reach_of(model.mesh), model.mesh.hub_radius, verdict.limits_of(case.verdict),
+            status="completed" if status == "completed" else status,
+            slack_share=verdict.slack_share(state.node_pos, model.elements.nodes,
+                                            model.elements.rest_len, broken),
+            failure_strain=case.cable.failure_strain, out_of_plane="out_of_plane_max" in h,
+            gravity=bool(case.environment and case.environment.gravity_gradient),
+            prescribed=LAWS[case.control.law].prescribes_rate)
+        verdict.write_group(writer.h5, crits)
+        writer.h5.flush()
+        lines = verdict.report(crits)
+        log.info("%s", lines[0])
+        for line in lines[1:]:
+            log.debug("%s", line)
+    except Exception as exc:  # noqa: BLE001 - the result stays; the verdict is missing
+        log.error("could not judge the run: %s", str(exc).splitlines()[0] if str(exc)
+                  else type(exc).__name__)
 
 
 def _finish(writer, **attrs):
