@@ -29,6 +29,9 @@ def add_parser(sub):
                    help="override the sweep file's mode")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="add to the sweep's [set] (every run), e.g. --set time.end=2")
+    p.add_argument("--only", action="append", default=[], metavar="NAME",
+                   help="run only this run (its folder name or index, as --dry-run lists "
+                        "them; a Monte-Carlo member keeps its own draws); repeatable")
     p.add_argument("--dry-run", action="store_true",
                    help="validate and list the runs, run nothing")
     p.add_argument("--no-progress", action="store_true", help="no line per finished run")
@@ -46,7 +49,8 @@ def run(args) -> int:
 
     if args.workers < 1:
         raise InputError("--workers", "", f"must be >= 1, got {args.workers}")
-    spec = sw.load_sweep(args.sweep, mode=args.mode, sets=args.sets)
+    spec = sw.load_sweep(args.sweep, mode=args.mode, sets=args.sets,
+                         only=[x for arg in args.only for x in arg.split(",")])
     out = Path(args.output) if args.output else Path("out") / Path(args.sweep).stem
     check_writable(out)  # before a cluster starts: one line, not a traceback per run
     if args.dry_run:
@@ -61,7 +65,7 @@ def run(args) -> int:
     paths = sweep_report.write_summary(spec, rows, out)
     cols, data = sweep_report.table(spec, rows)
     shown = ["name", "deploy_time_s", "peak_hub_torque_Nm", "final_hub_omega_rad_s",
-             "max_tension_N", "recoiled", "wall_time_s", "status"]
+             "max_tension_N", "passed", "failed", "wall_time_s", "status"]
     idx = [cols.index(c) for c in shown]
     lines = [[c for c in shown]] + [[_fmt(r[j]) for j in idx] for r in data]
     widths = [max(len(line[j]) for line in lines) for j in range(len(shown) - 1)]
@@ -71,4 +75,6 @@ def run(args) -> int:
     total = sum(r.get("wall_time_s", 0.0) for r in rows if not math.isnan(r["wall_time_s"]))
     print(f"{len(rows) - n_fail} of {len(rows)} runs ok, {n_fail} failed "
           f"({total:.1f} s of run time); wrote {paths['csv']}, {paths['h5']}, {paths['png']}")
+    for line in sweep_report.rate_lines(spec, rows):
+        print(line)
     return 0

@@ -125,7 +125,8 @@ def tip_radius(h, hub_radius: float) -> np.ndarray:
 
 def _deployment(t, radius, reach, lim):
     """(index of full deployment or -1, criterion): every tip at least deployed_fraction
-    of its deployed distance from the hub axis, from then on to the end."""
+    of its deployed distance from the hub axis, from then on to the end; the value is the
+    least share at the end."""
     frac = lim["deployed_fraction"]
     ratio = radius / reach
     out = ratio >= frac
@@ -149,7 +150,7 @@ def _deployment(t, radius, reach, lim):
     detail = f"out for good from t = {t_dep:.4g} s" + (
         f" (first out at {t_first:.4g} s)" if t_first < t_dep else "") + (
         f" (deploy_by {by:g} s)" if by is not None else "")
-    return i_dep, Criterion("deployed", True, float(ratio[i_dep:].min()), frac, detail=detail)
+    return i_dep, Criterion("deployed", True, float(ratio[-1].min()), frac, detail=detail)
 
 
 def deploy_time(t, radius, reach, fraction) -> float:
@@ -338,6 +339,25 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
 def passed(criteria) -> bool:
     """Every criterion that applies passed."""
     return all(c.passed is not False for c in criteria)
+
+
+def severity(criteria) -> float:
+    """The worst criterion against its limit, as a number (above 1: failed): value / limit
+    for a quantity that must stay below its limit, limit / value for the deployed share
+    (a deployment time against deploy_by: time / limit), infinity for a run that did not
+    complete. Ranks the members of a Monte-Carlo sweep (the worst is the largest)."""
+    worst = 0.0
+    for c in criteria:
+        if c.passed is None:
+            continue
+        if c.name == "completed":
+            r = 0.0 if c.passed else math.inf
+        elif c.name == "deployed" and c.units != "s":
+            r = c.limit / max(c.value, 1e-300) if math.isfinite(c.value) else math.inf
+        else:
+            r = c.value / c.limit if c.limit > 0 else math.inf
+        worst = max(worst, r if math.isfinite(r) or r > 0 else 0.0)
+    return worst
 
 
 def failed_names(criteria) -> list:

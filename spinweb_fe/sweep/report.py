@@ -14,13 +14,82 @@ from spinweb_fe.sweep.run import METRICS, PLOTTED, Sweep
 
 def table(sweep: Sweep, rows) -> tuple[list, list]:
     """(column names, list of row lists): index, name, swept keys, metrics, status, dir."""
-    cols = ["index", "name", *sweep.keys, *(m for m, _, _ in METRICS), "status", "run_dir"]
+    member = ["member"] if sweep.members else []
+    cols = ["index", "name", *member, *sweep.keys, *(m for m, _, _ in METRICS), "failed",
+            "status", "run_dir"]
     out = []
     for run, row in zip(sweep.runs, rows):
-        out.append([run.index, run.name, *(run.values[k] for k in sweep.keys),
-                    *(row.get(m, math.nan) for m, _, _ in METRICS), row["status"],
-                    f"runs/{run.name}"])
+        out.append([run.index, run.name, *([run.member] if member else []),
+                    *(run.values[k] for k in sweep.keys),
+                    *(row.get(m, math.nan) for m, _, _ in METRICS), row.get("failed", ""),
+                    row["status"], f"runs/{run.name}"])
     return cols, out
+
+
+def groups(sweep: Sweep) -> dict:
+    """{label: [positions of its runs]}: the runs of one grid point and [[runs]] entry (the
+    Monte-Carlo members of one design) together; one group '' without a grid or entries."""
+    drawn = {d.key for d in sweep.draws}
+    out = {}
+    for pos, run in enumerate(sweep.runs):
+        fixed = [(k, v) for k, v in run.values.items() if k not in drawn]
+        label = ", ".join([run.label] * bool(run.label) + [
+            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in fixed])
+        out.setdefault(label, []).append(pos)
+    return out
+
+
+def pass_rate(sweep: Sweep, rows, positions=None) -> dict:
+    """The verdicts of a sweep's runs (or of those at ``positions``): n, passes, rate, its
+    Wilson interval (sweep.draws, 95 %), the count of each failed criterion, and the worst
+    run (largest verdict severity; a run that failed to run is the worst) with the command
+    that runs it alone."""
+    from spinweb_fe.sweep.draws import CONFIDENCE, wilson
+
+    positions = range(len(rows)) if positions is None else positions
+    sel = [rows[i] for i in positions]
+    n = len(sel)
+    passes = sum(r.get("passed") == 1.0 for r in sel)
+    low, high = wilson(passes, n)
+    counts = {}
+    for r in sel:
+        for name in filter(None, str(r.get("failed", "")).split(",")):
+            counts[name] = counts.get(name, 0) + 1
+
+    def badness(i):
+        sev = rows[i].get("severity", math.nan)
+        return math.inf if rows[i]["status"] != "ok" or sev != sev else sev
+    worst = max(positions, key=badness) if n else None
+    out = {"n": n, "passes": passes, "rate": passes / n if n else math.nan, "low": low,
+           "high": high, "confidence": CONFIDENCE, "failed_counts": counts}
+    if worst is not None:
+        run = sweep.runs[worst]
+        out.update(worst=run.name, worst_severity=badness(worst),
+                   worst_failed=rows[worst].get("failed", ""),
+                   rerun=f"spinweb sweep {sweep.source} --only {run.name}")
+    return out
+
+
+def rate_lines(sweep: Sweep, rows) -> list:
+    """Lines of a sweep's pass rates for the terminal: one block per group of runs
+    (:func:`groups`)."""
+    lines = []
+    what = "Monte-Carlo members" if sweep.members else "runs"
+    for label, positions in groups(sweep).items():
+        pr = pass_rate(sweep, rows, positions)
+        head = f"verdicts{' (' + label + ')' if label else ''}: "
+        lines.append(f"{head}{pr['passes']} of {pr['n']} {what if pr['n'] > 1 else 'run'} "
+                     f"pass ({100 * pr['rate']:.1f} %, {100 * pr['confidence']:.0f} % "
+                     f"interval {100 * pr['low']:.1f} .. {100 * pr['high']:.1f} %)")
+        if pr["failed_counts"]:
+            lines.append("  failed criteria: " + ", ".join(
+                f"{k} {v}" for k, v in sorted(pr["failed_counts"].items(),
+                                              key=lambda kv: -kv[1])))
+        if pr.get("worst") is not None and pr["n"] > 1:
+            why = pr["worst_failed"] or "passes"
+            lines.append(f"  worst: {pr['worst']} (severity {pr['worst_severity']:.3g}: "
+                         f"{why}); run it alone: {pr['rerun']} -o DIR")
+    return lines
 
 
 def write_summary(sweep: Sweep, rows, out_dir) -> dict:
@@ -48,6 +117,19 @@ def write_summary(sweep: Sweep, rows, out_dir) -> dict:
                          "swept_keys": list(sweep.keys) or [""], "spinweb_version": __version__,
                          "n_runs": len(data),
                          "n_failed": sum(r[cols.index("status")] != "ok" for r in data)})
+        pr = pass_rate(sweep, rows)
+        by_group = {label: pass_rate(sweep, rows, pos) for label, pos in groups(sweep).items()}
+        h5.attrs.update({"groups": list(by_group) or [""],
+                         "group_passes": [p["passes"] for p in by_group.values()],
+                         "group_runs": [p["n"] for p in by_group.values()],
+                         "group_pass_rate_low": [p["low"] for p in by_group.values()],
+                         "group_pass_rate_high": [p["high"] for p in by_group.values()]})
+        h5.attrs.update({"members": sweep.members, "seed": sweep.seed,
+                         "random": [f"{d.key} ~ {d.describe()}" for d in sweep.draws] or [""],
+                         "passes": pr["passes"], "pass_rate": pr["rate"],
+                         "pass_rate_low": pr["low"], "pass_rate_high": pr["high"],
+                         "pass_rate_confidence": pr["confidence"],
+                         "worst_run": pr.get("worst", ""), "worst_rerun": pr.get("rerun", "")})
         g = h5.create_group("runs")
         g.attrs["columns"] = cols  # the table's column order
         for j, name in enumerate(cols):
@@ -117,6 +199,8 @@ def plot_summary(sweep: Sweep, rows, path):
     import matplotlib.pyplot as plt
     import matplotlib.ticker
 
+    if sweep.members:
+        return plot_members(sweep, rows, path)
     xkey = sweep.keys[0] if sweep.keys else "index"
     xs = [r.values[xkey] if sweep.keys else r.index for r in sweep.runs]
     numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in xs)
@@ -167,3 +251,50 @@ def plot_summary(sweep: Sweep, rows, path):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_members(sweep: Sweep, rows, path):
+    """A Monte-Carlo sweep: the metrics against its first drawn key, each member a point,
+    green when its verdict passes, red when it fails (failed runs left out)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xkey = next((d.key for d in sweep.draws if all(
+        _num(r.values[d.key]) == _num(r.values[d.key]) for r in sweep.runs)), None)
+    x = np.array([_num(r.values[xkey]) if xkey else r.member for r in sweep.runs])
+    ok = np.array([row.get("passed") == 1.0 for row in rows])
+    marks = "osD^v<>"
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    for ax, (metric, ylabel) in zip(axes.flat, PLOTTED.items()):
+        y = np.array([row.get(metric, math.nan) for row in rows], dtype=float)
+        for g, (label, pos) in enumerate(groups(sweep).items()):
+            sel = np.zeros(len(rows), bool)
+            sel[pos] = True
+            m = marks[g % len(marks)]
+            name = f"{label}: " if label else ""
+            ax.plot(x[sel & ok], y[sel & ok], m, color="tab:green", ms=5, mfc="none" if g
+                    else "tab:green", label=f"{name}passes")
+            ax.plot(x[sel & ~ok], y[sel & ~ok], m, color="tab:red", ms=5, mfc="none" if g
+                    else "tab:red", label=f"{name}fails")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel(_key_label(xkey) if xkey else "member")
+    axes.flat[0].legend(fontsize=7)
+    rates = []
+    for label, pos in groups(sweep).items():
+        pr = pass_rate(sweep, rows, pos)
+        rates.append(f"{label + ': ' if label else ''}{pr['passes']} of {pr['n']} pass "
+                     f"[{100 * pr['low']:.0f}, {100 * pr['high']:.0f}] %")
+    fig.suptitle(f"{sweep.title or sweep.source.name} ({sweep.mode})\n" + "; ".join(rates),
+                 fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _num(v):
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan

@@ -41,13 +41,16 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe.case.load import validate
+from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.sweep.draws import member_values
+from spinweb_fe.sweep.draws import parse as parse_draws
 
 log = logging.getLogger(__name__)
 
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
-TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs")
+TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs", "members", "seed", "random")
 DEPLOYED = 0.95  # fully deployed: every arm at least this fraction of its deployed length
 RECOILED = 0.5   # re-coiled: after full deployment, some arm shorter than this fraction
 #: metric columns: (name, units, description)
@@ -57,6 +60,8 @@ METRICS = (
     ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
     ("max_tension_N", "N", "largest max_tension of the run"),
     ("recoiled", "1", "1 if some arm_length < 0.5 deployed length after full deployment"),
+    ("passed", "1", "1 if the run's verdict passes (every criterion that applies), else 0"),
+    ("severity", "1", "the verdict's worst criterion against its limit (above 1: failed)"),
     ("wall_time_s", "s", "wall-clock time of the run (task)"),
 )
 #: metrics drawn in summary.png, with their axis labels
@@ -75,6 +80,7 @@ class Run:
     overrides: dict
     raw: dict
     label: str = ""  # the name of its [[runs]] entry, if given
+    member: int = -1  # its Monte-Carlo member (-1: the sweep has none)
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,9 @@ class Sweep:
     runs: tuple
     text: str
     grid: tuple = ()  # the [grid] keys (the first of ``keys``)
+    members: int = 0  # Monte-Carlo members per grid point and [[runs]] entry (0: none)
+    seed: int = 0
+    draws: tuple = ()  # sweep.draws.Draw of each [random] key (the last of ``keys``)
 
 
 def flatten(table: dict, prefix: str = "") -> dict:
@@ -143,7 +152,7 @@ def _scalar(src, key, v):
     return v
 
 
-def load_sweep(path, mode=None, sets=()) -> Sweep:
+def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
     """Read a sweep file, build and validate every run.
 
     Parameters
@@ -153,6 +162,8 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
         Overrides the file's ``mode``.
     sets : iterable of str
         ``key=value`` overrides (TOML values) added to ``[set]``.
+    only : iterable of str
+        Keep only these runs (their names or indices; each run keeps its own draws).
 
     Raises
     ------
@@ -207,17 +218,28 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
             where = f"[grid] ({src.name}: grid.{k})" if k in grid else f"[[runs]] ({src.name})"
             raise InputError("--set", k, f"is also set by the sweep's {where}, which would "
                              "override it: give it in one place")
-    keys = tuple(list(grid) + run_keys)
+    members, seed, draws = parse_draws(src, doc)
+    for d in draws:
+        if d.key in grid or d.key in run_keys or d.key in common:
+            raise InputError(src, f"random.{d.key}", "also set in [set], [grid] or [[runs]]: "
+                             "give it in one place")
+    keys = tuple(list(grid) + run_keys + [d.key for d in draws])
     base_raw = _read_toml(base, "base case")
     points = [dict(zip(grid, combo)) for combo in itertools.product(*grid.values())]
-    combos = [(i, e, g) for i, e in enumerate(entries) for g in points]
+    combos = [(i, e, g, m) for i, e in enumerate(entries) for g in points
+              for m in (range(members) if members else [-1])]
     width = max(3, len(str(len(combos) - 1)))
+    mwidth = len(str(max(members - 1, 0)))
     runs = []
-    for index, (i_entry, entry, point) in enumerate(combos):
+    wanted = {str(x) for x in only or ()}
+    for index, (i_entry, entry, point, member) in enumerate(combos):
         own = {k: _scalar(src, f"runs[{i_entry}].{k}", v)
                for k, v in entry.items() if k != "name"}
-        overrides = {**common, **own, **point}
-        where = f"run {index}"
+        drawn = member_values(draws, seed, member) if member >= 0 else {}
+        overrides = {**common, **own, **point, **drawn}
+        where = f"run {index}" + (f" (member {member}: "
+                                  + ", ".join(f"{k} = {v!r}" for k, v in drawn.items()) + ")"
+                                  if member >= 0 else "")
         raw = apply(base_raw, overrides, src, where)
         try:
             resolved = flatten(validate(raw, str(base)).to_dict())
@@ -226,12 +248,21 @@ def load_sweep(path, mode=None, sets=()) -> Sweep:
                              exc.reason) from None
         values = {k: resolved.get(k, overrides.get(k)) for k in keys}
         label = entry.get("name")
-        slug = _slug(values) if label is None else _clean(
+        fixed = {k: v for k, v in values.items() if k not in drawn}
+        slug = _slug(fixed) if label is None else _clean(
             "_".join([str(label)] + ([_slug(point)] if point else [])))
-        runs.append(Run(index, f"{index:0{width}d}_{slug}", values, overrides, raw,
-                        "" if label is None else str(label)))
+        if member >= 0:
+            slug = _clean(("" if slug == "base" else slug + "_") + f"m{member:0{mwidth}d}")
+        name = f"{index:0{width}d}_{slug}"
+        if wanted and name not in wanted and str(index) not in wanted:
+            continue
+        runs.append(Run(index, name, values, overrides, raw,
+                        "" if label is None else str(label), member))
+    if wanted and not runs:
+        raise InputError("--only", "", f"no run of {src.name} is named {', '.join(sorted(wanted))} "
+                         "(see --dry-run for the names)")
     return Sweep(src, str(doc.get("title", "")), base, mode, model, keys, tuple(runs),
-                 src.read_text(encoding="utf-8"), tuple(grid))
+                 src.read_text(encoding="utf-8"), tuple(grid), members, seed, draws)
 
 
 def history_metrics(h: dict, free_length: float) -> dict:
@@ -299,6 +330,7 @@ def run_one(task: dict) -> dict:
 
             run_case(case, out, progress=False)
             metrics = fe_metrics(out / "results.h5")
+            crits = _file_verdict(out / "results.h5")
         else:
             from spinweb_fe.analytic import solve as analytic
 
@@ -307,10 +339,14 @@ def run_one(task: dict) -> dict:
             if res.stopped:
                 raise RunError(res.stopped, time=float(res.history["time"][-1]))
             metrics = history_metrics(res.history, res.params.H)
+            crits = analytic.judge(case, res)
+        metrics.update(passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
+                       failed=",".join(verdict.failed_names(crits)))
         status = "ok"
     except Exception as exc:  # recorded, not fatal: the sweep goes on
         spin_log.error("run failed:\n%s", traceback.format_exc())
         metrics = {name: math.nan for name, _, _ in METRICS}
+        metrics["failed"] = "run failed"
         status = f"{type(exc).__name__}: {exc}".splitlines()[0]
     finally:
         spin_log.removeHandler(handler)
@@ -319,8 +355,20 @@ def run_one(task: dict) -> dict:
     return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
 
 
+def _file_verdict(path) -> list:
+    """The criteria of an FE result file's /verdict group (the driver writes it)."""
+    import h5py
+
+    with h5py.File(path, "r") as h5:
+        crits = verdict.read_group(h5)
+    if crits is None:
+        raise RunError(f"{path} has no verdict (the run could not be judged: see run.log)")
+    return crits
+
+
 def _failed(exc) -> dict:
     row = {name: math.nan for name, _, _ in METRICS}
+    row["failed"] = "run failed"
     row["status"] = f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
     return row
 
@@ -380,11 +428,11 @@ def _execute(sweep, out_dir, scheduler, workers, progress):
         log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
                  scheduler or f"a local Dask cluster of {workers} worker process(es)")
         futures = {}
-        for run in sweep.runs:
+        for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
             task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
                     "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
             fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
-            futures[fut] = run.index
+            futures[fut] = pos
         for done, fut in enumerate(as_completed(futures), start=1):
             i = futures[fut]
             try:
