@@ -254,15 +254,18 @@ def plot_summary(sweep: Sweep, rows, path):
 
 
 def plot_members(sweep: Sweep, rows, path):
-    """A Monte-Carlo sweep: the metrics against its first drawn key, each member a point,
+    """A Monte-Carlo sweep: the metrics against its first continuous drawn key (else its
+    first numeric one, else the member), each member a point,
     green when its verdict passes, red when it fails (failed runs left out)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    xkey = next((d.key for d in sweep.draws if all(
-        _num(r.values[d.key]) == _num(r.values[d.key]) for r in sweep.runs)), None)
+    numeric = [d.key for d in sweep.draws if all(
+        _num(r.values[d.key]) == _num(r.values[d.key]) for r in sweep.runs)]
+    spread = [d.key for d in sweep.draws if d.dist != "choice" and d.key in numeric]
+    xkey = (spread or numeric or [None])[0]  # a continuous draw first
     x = np.array([_num(r.values[xkey]) if xkey else r.member for r in sweep.runs])
     ok = np.array([row.get("passed") == 1.0 for row in rows])
     marks = "osD^v<>"
