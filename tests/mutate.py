@@ -56,6 +56,8 @@ FOLD_TESTS = ("tests/test_fold.py", "tests/test_fold_polygon.py", "tests/test_te
               "tests/test_topologies.py")
 COIL_TESTS = ("tests/test_coil.py", "tests/test_hub.py", "tests/test_mutation_guards.py")
 PAYOUT_TESTS = ("tests/test_payout.py",)
+VERDICT_TESTS = ("tests/test_verdict.py",)
+SWEEP_TESTS = ("tests/test_montecarlo.py",)
 
 
 @dataclass(frozen=True)
@@ -306,6 +308,41 @@ MUTANTS = (
            "hull[2] = c + dt * rs.velocity",
            "the free hub's predicted centre for contact ignores its turn about the centre of "
            "mass", ("tests/test_free_hub.py",)),
+    # ---- verdicts and Monte-Carlo sweeps (issue #25)
+    Mutant("verdict_recoil_running_min", "spinweb_fe/record/verdict.py",
+           "back = np.maximum.accumulate(radius, axis=0) - radius",
+           "back = np.minimum.accumulate(radius, axis=0) - radius",
+           "re-coil measured from the tip's nearest, not its farthest", VERDICT_TESTS),
+    Mutant("verdict_deployed_first_out", "spinweb_fe/record/verdict.py",
+           "    i_dep = len(t) - int(np.argmax(short[::-1])) if short.any() else 0\n    by",
+           "    i_dep = int(np.argmax(~short)) if (~short).any() else len(t)\n    by",
+           "deployed from the first time the tips are out, not for good", VERDICT_TESTS),
+    Mutant("verdict_swing_full_range", "spinweb_fe/record/verdict.py",
+           "amp = 0.5 * (after.max(axis=0) - after.min(axis=0))",
+           "amp = after.max(axis=0) - after.min(axis=0)",
+           "swing as the whole range of phi, not half of it", VERDICT_TESTS),
+    Mutant("verdict_prescribed_by_trapezoid", "spinweb_fe/record/verdict.py",
+           "by_work = np.abs(wm) > 1e-6", "by_work = np.abs(wm) < 1e-6",
+           "a prescribed rate's impulse from the sampled torque's trapezoid", VERDICT_TESTS),
+    Mutant("verdict_na_fails", "spinweb_fe/record/verdict.py",
+           "return all(c.passed is not False for c in criteria)",
+           "return all(c.passed is True for c in criteria)",
+           "a criterion that does not apply fails the verdict", VERDICT_TESTS),
+    Mutant("verdict_slack_counts_taut", "spinweb_fe/record/verdict.py",
+           "slack = np.sqrt(np.einsum(\"ij,ij->i\", d, d)) <= rest_len",
+           "slack = np.sqrt(np.einsum(\"ij,ij->i\", d, d)) >= rest_len",
+           "the slack share counts the taut elements", VERDICT_TESTS),
+    Mutant("montecarlo_one_generator", "spinweb_fe/sweep/draws.py",
+           "rng = np.random.default_rng((seed, member))", "rng = np.random.default_rng(seed)",
+           "every member draws from the same generator (all members alike)", SWEEP_TESTS),
+    Mutant("wilson_centre_shift", "spinweb_fe/sweep/draws.py",
+           "centre = (p + z * z / (2 * n)) / (1 + z * z / n)",
+           "centre = (p + z * z / n) / (1 + z * z / n)",
+           "the Wilson interval's centre shifted by twice its correction", SWEEP_TESTS),
+    Mutant("montecarlo_best_is_worst", "spinweb_fe/sweep/report.py",
+           "worst = max(positions, key=badness) if n else None",
+           "worst = min(positions, key=badness) if n else None",
+           "the sweep names its best member as the worst", SWEEP_TESTS),
 )
 
 
