@@ -49,11 +49,14 @@ def read_csv(path):
 
 
 def deploy_time_by_hand(h5path):
+    """The first row at which every tip is at least 0.8 of its flat distance from the
+    axis (the hub on a fixed axis at the origin)."""
     with h5py.File(h5path) as h5:
-        free = h5["mesh"].attrs["arm_length"] - h5["mesh"].attrs["arm_root_coord"]
-        t, arm = h5["history/time"][()], h5["history/arm_length"][()]
+        tips = h5["mesh/node_sets/tips"][()]
+        reach = np.hypot(*h5["mesh/reference_points"][()][tips, :2].T)
+        t, p = h5["history/time"][()], h5["history/tip_position"][()]
     for k in range(len(t)):
-        if all(arm[k] >= 0.95 * free):
+        if all(np.hypot(p[k, :, 0], p[k, :, 1]) >= 0.8 * reach):
             return t[k]
     return math.nan
 
@@ -150,20 +153,20 @@ def test_grid_times_runs_and_dry_run(capsys):
 
 
 def test_history_metrics():
+    """Analytical rows (L and phi): arm 1 reaches 0.8 of its reach r0 + H = 21 m when
+    r0 + 8 t = 16.8 m, at t = 1.975 s (arm 0 at 10 m/s is out before)."""
     t = np.linspace(0.0, 4.0, 401)
-    L = np.clip(t[:, None] * [10.0, 8.0], 0.0, 20.0)  # arm 1 out at t = 2.5 s
-    h = {"time": t, "arm_length": L, "hub_torque": -3.0 * np.sin(t), "hub_omega": 5.0 - t,
-         "max_tension": t ** 2}
-    m = sw.history_metrics(h, 20.0)
-    assert m["deploy_time_s"] == pytest.approx(2.38)  # 0.95 * 20 / 8
-    assert m["recoiled"] == 0.0 and m["final_hub_omega_rad_s"] == pytest.approx(1.0)
+    L = np.clip(t[:, None] * [10.0, 8.0], 0.0, 20.0)
+    h = {"time": t, "arm_length": L, "arm_angle": np.zeros_like(L),
+         "hub_torque": -3.0 * np.sin(t), "hub_omega": 5.0 - t, "max_tension": t ** 2}
+    m = sw.history_metrics(h, 21.0, 1.0)
+    assert m["deploy_time_s"] == pytest.approx(1.98)  # the first row at or after 1.975 s
+    assert m["final_hub_omega_rad_s"] == pytest.approx(1.0)
     assert m["peak_hub_torque_Nm"] == pytest.approx(3.0, rel=1e-4)
     assert m["max_tension_N"] == pytest.approx(16.0)
-    h["arm_length"] = np.where(t[:, None] > 3.0, 9.0, L)  # falls below half after deploying
-    assert sw.history_metrics(h, 20.0)["recoiled"] == 1.0
+    assert sw.history_metrics(h, 21.0, 1.0, 0.95)["deploy_time_s"] == pytest.approx(2.37)
     h["arm_length"] = L * 0.5  # never deployed
-    m = sw.history_metrics(h, 20.0)
-    assert math.isnan(m["deploy_time_s"]) and m["recoiled"] == 0.0
+    assert math.isnan(sw.history_metrics(h, 21.0, 1.0)["deploy_time_s"])
 
 
 def test_analytic_run_one_fig8_recoils(tmp_path):

@@ -51,15 +51,15 @@ log = logging.getLogger(__name__)
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
 TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs", "members", "seed", "random")
-DEPLOYED = 0.95  # fully deployed: every arm at least this fraction of its deployed length
-RECOILED = 0.5   # re-coiled: after full deployment, some arm shorter than this fraction
 #: metric columns: (name, units, description)
 METRICS = (
-    ("deploy_time_s", "s", "first time every arm_length >= 0.95 deployed length (NaN: never)"),
+    ("deploy_time_s", "s", "first time every tip is at least verdict.deployed_fraction of its "
+                           "deployed distance from the hub axis (NaN: never)"),
     ("peak_hub_torque_Nm", "N m", "largest |hub_torque|"),
     ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
     ("max_tension_N", "N", "largest max_tension of the run"),
-    ("recoiled", "1", "1 if some arm_length < 0.5 deployed length after full deployment"),
+    ("recoiled", "1", "1 if the verdict's re-coil criterion fails (a tip fell back toward the "
+                      "hub by more than verdict.recoil of its arm)"),
     ("passed", "1", "1 if the run's verdict passes (every criterion that applies), else 0"),
     ("severity", "1", "the verdict's worst criterion against its limit (above 1: failed)"),
     ("wall_time_s", "s", "wall-clock time of the run (task)"),
@@ -265,46 +265,47 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
                  src.read_text(encoding="utf-8"), tuple(grid), members, seed, draws)
 
 
-def history_metrics(h: dict, free_length: float) -> dict:
-    """Metrics of one run from its ``/history`` (see METRICS and docs/sweep.md).
+def history_metrics(h: dict, reach, hub_radius: float,
+                    fraction: float = verdict.DEFAULTS["deployed_fraction"]) -> dict:
+    """Metrics of one run from its ``/history`` (see METRICS and docs/sweep.md); the
+    verdict's columns (passed, severity, recoiled) come from its criteria.
 
     Parameters
     ----------
     h : dict
-        ``time (T,)``, ``arm_length (T, n)``, ``hub_torque``, ``hub_omega``,
-        ``max_tension (T,)``.
-    free_length : float or (n,) [m]
-        Length L of each fully deployed arm (FE: spinweb_fe.arms.deployed_length, the flat
-        web's root-to-tip distance; analytic: H).
+        ``time (T,)``, ``tip_position (T, n, 3)`` (FE) or ``arm_length`` and
+        ``arm_angle (T, n)`` (analytical), ``hub_torque``, ``hub_omega``, ``max_tension``.
+    reach : float or (n,) [m]
+        Each deployed tip's distance from the hub axis (record.verdict.reach_of; analytic:
+        r0 + H).
+    fraction : float
+        The deployed share of the reach (the case's verdict.deployed_fraction).
     """
     t = np.asarray(h["time"])
-    arm = np.asarray(h["arm_length"]).reshape(len(t), -1)
-    full = np.all(arm >= DEPLOYED * free_length, axis=1)
-    if full.any():
-        i = int(np.argmax(full))
-        t_dep = float(t[i])
-        recoiled = float(np.any(arm[i:] < RECOILED * free_length))
-    else:
-        t_dep, recoiled = math.nan, 0.0
+    radius = verdict.tip_radius(h, hub_radius)
+    full = np.all(radius >= fraction * np.asarray(reach), axis=1)
+    t_dep = float(t[int(np.argmax(full))]) if full.any() else math.nan
     return {"deploy_time_s": t_dep,
             "peak_hub_torque_Nm": float(np.max(np.abs(h["hub_torque"]))),
             "final_hub_omega_rad_s": float(h["hub_omega"][-1]),
-            "max_tension_N": float(np.max(h["max_tension"])),
-            "recoiled": recoiled}
+            "max_tension_N": float(np.max(h["max_tension"]))}
 
 
 def fe_metrics(path) -> dict:
-    """:func:`history_metrics` of an FE ``results.h5`` (deployed lengths from ``/mesh``)."""
+    """:func:`history_metrics` of an FE ``results.h5`` (the deployed reach from ``/mesh``,
+    the deployed share from the case's [verdict])."""
     import h5py
 
     from spinweb_fe.io.mesh import read_mesh_group
-    from spinweb_fe.record.arms import deployed_length
 
     with h5py.File(path, "r") as h5:
-        free = deployed_length(read_mesh_group(h5["mesh"]))
-        h = {k: h5["history"][k][()] for k in
-             ("time", "arm_length", "hub_torque", "hub_omega", "max_tension")}
-    return history_metrics(h, free)
+        mesh = read_mesh_group(h5["mesh"])
+        case = tomllib.loads(str(h5.attrs.get("case", "")))
+        keys = ("time", "tip_position", "hub_position", "hub_axis", "hub_torque", "hub_omega",
+                "max_tension")
+        h = {k: h5["history"][k][()] for k in keys if k in h5["history"]}
+    frac = verdict.limits_of(case.get("verdict"))["deployed_fraction"]
+    return history_metrics(h, verdict.reach_of(mesh), mesh.hub_radius, frac)
 
 
 def run_one(task: dict) -> dict:
@@ -338,9 +339,13 @@ def run_one(task: dict) -> dict:
             analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
             if res.stopped:
                 raise RunError(res.stopped, time=float(res.history["time"][-1]))
-            metrics = history_metrics(res.history, res.params.H)
+            p = res.params
+            metrics = history_metrics(res.history, p.r0 + p.H, p.r0,
+                                      verdict.limits_of(case.verdict)["deployed_fraction"])
             crits = analytic.judge(case, res)
-        metrics.update(passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
+        recoil = next(c for c in crits if c.name == "recoil")
+        metrics.update(recoiled=float(recoil.passed is False),
+                       passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
                        failed=",".join(verdict.failed_names(crits)))
         status = "ok"
     except Exception as exc:  # recorded, not fatal: the sweep goes on
