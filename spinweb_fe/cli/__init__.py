@@ -20,7 +20,7 @@ from spinweb_fe import __version__
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
 
 COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "modes", "info", "render",
-            "sweep")
+            "sweep", "design")
 log = logging.getLogger(__name__)
 
 
