@@ -58,6 +58,7 @@ COIL_TESTS = ("tests/test_coil.py", "tests/test_hub.py", "tests/test_mutation_gu
 PAYOUT_TESTS = ("tests/test_payout.py",)
 VERDICT_TESTS = ("tests/test_verdict.py",)
 SWEEP_TESTS = ("tests/test_montecarlo.py",)
+DESIGN_TESTS = ("tests/test_design.py",)
 
 
 @dataclass(frozen=True)
@@ -343,6 +344,20 @@ MUTANTS = (
            "worst = max(positions, key=badness) if n else None",
            "worst = min(positions, key=badness) if n else None",
            "the sweep names its best member as the worst", SWEEP_TESTS),
+    Mutant("design_bisect_keeps_the_failure", "spinweb_fe/sweep/design.py",
+           "            ug, good = 0.5 * (ug + ub), mid",
+           "            ub = 0.5 * (ug + ub)",
+           "the design's bisection moves its failing end where the midpoint passes",
+           DESIGN_TESTS),
+    Mutant("design_bound_margin_sign", "spinweb_fe/sweep/design.py",
+           "margins.append(1.0 - v / lim if math.isfinite(v) else -1.0)",
+           "margins.append(v / lim - 1.0 if math.isfinite(v) else -1.0)",
+           "a bound's margin with the wrong sign (a point far inside it seen as failing)",
+           DESIGN_TESTS),
+    Mutant("design_bound_ignored", "spinweb_fe/sweep/design.py",
+           "        if not v <= lim:\n            failed.append(b)",
+           "        if not v <= 10.0 * lim:\n            failed.append(b)",
+           "the design's bounds checked ten times too loosely", DESIGN_TESTS),
 )
 
 
