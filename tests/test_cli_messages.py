@@ -115,3 +115,19 @@ def test_keys_at_fault_are_named(capsys):
     assert main(["run", DEMO, "--set", "web.side=1e9", "-o", "/nonexistent/x"]) == 2
     assert f"{DEMO}: web.side: gives about 2e+18 cable elements" in \
         one_line(capsys.readouterr().err)
+
+
+def test_a_closed_pipe_is_not_an_error_message(tmp_path):
+    """`spinweb sweep ... --dry-run | head -1`: the reader leaves after one line; the
+    command stops quietly (no 'I/O error: Broken pipe', no traceback)."""
+    import subprocess
+    import sys as _sys
+    from pathlib import Path as _Path
+
+    root = _Path(__file__).resolve().parents[1]
+    cmd = (f"'{_sys.executable}' -m spinweb_fe sweep "
+           f"'{root / 'cases' / 'sweeps' / 'montecarlo_feedback_web.toml'}' --dry-run | head -1")
+    proc = subprocess.run(["bash", "-c", cmd], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path)
+    assert proc.stdout.startswith("64 fe runs")
+    assert proc.stderr == ""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import re
 import signal
 import sys
@@ -91,6 +92,12 @@ def _main(argv) -> int:
     except RunError as exc:  # RunInterrupted (a signal) carries ``signame``
         what = "" if getattr(exc, "signame", None) else f"{command} failed: "
         print(f"spinweb: {what}{_one_line(exc)}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to report
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout without a file descriptor (a test's capture)
+            pass
         return 1
     except OSError as exc:
         print(f"spinweb: {command} failed: I/O error: {_one_line(exc)}", file=sys.stderr)
