@@ -118,16 +118,20 @@ def test_keys_at_fault_are_named(capsys):
 
 
 def test_a_closed_pipe_is_not_an_error_message(tmp_path):
-    """`spinweb sweep ... --dry-run | head -1`: the reader leaves after one line; the
-    command stops quietly (no 'I/O error: Broken pipe', no traceback)."""
+    """`spinweb sweep ... --dry-run | head -1` with more lines than a pipe holds (64 kB):
+    the reader leaves after one line; the command stops quietly (no 'I/O error: Broken
+    pipe', no traceback)."""
     import subprocess
     import sys as _sys
     from pathlib import Path as _Path
 
     root = _Path(__file__).resolve().parents[1]
-    cmd = (f"'{_sys.executable}' -m spinweb_fe sweep "
-           f"'{root / 'cases' / 'sweeps' / 'montecarlo_feedback_web.toml'}' --dry-run | head -1")
-    proc = subprocess.run(["bash", "-c", cmd], capture_output=True, text=True, timeout=120,
+    text = (root / "cases" / "sweeps" / "montecarlo_feedback_web.toml").read_text()
+    big = tmp_path / "big.toml"
+    big.write_text(text.replace("members = 32", "members = 600").replace(
+        'base = "../paper_feedback_web.toml"', f'base = "{root / "cases" / "paper_feedback_web.toml"}"'))
+    cmd = f"'{_sys.executable}' -m spinweb_fe sweep '{big}' --dry-run | head -1"
+    proc = subprocess.run(["bash", "-c", cmd], capture_output=True, text=True, timeout=300,
                           cwd=tmp_path)
-    assert proc.stdout.startswith("64 fe runs")
+    assert proc.stdout.startswith("1200 fe runs")
     assert proc.stderr == ""
