@@ -215,3 +215,31 @@ def test_design_end_to_end_with_fe(tmp_path, capsys, warm_numba_cache):
     assert all(c.passed is not False for c in crits if c.name in REQUIRE)
     assert peak <= 2e6 and math.isclose(peak, float(chosen["fe_peak_torque"]), rel_tol=1e-12)
     assert (out / "design.png").stat().st_size > 10_000
+
+
+def test_a_power_bound_is_the_largest_torque_times_rate(tmp_path):
+    """peak_power = max |M omega| of the analytical history, checked by hand on the
+    feasible design at 1.5e6 N m; a bound just below it makes that point fail on it alone,
+    with the margin 1 - P / bound."""
+    d = ds.load_design(write(tmp_path, SMALL))
+    good = ds.evaluate(d, {"control.M0": 1.5e6})
+    doc = tomllib.loads((tmp_path / "d.toml").read_text())
+    sets = [f"{k}={v!r}" for k, v in {**doc["set"], "control.M0": 1.5e6}.items()]
+    case = load_case(BASE, sets + ["control.law='torque_feedback'",
+                                   "control.omega0=25.132741228718345"])
+    h = solve.solve_case(case).history
+    power = float(np.max(np.abs(h["hub_torque"] * h["hub_omega"])))
+    assert math.isclose(good.metrics["peak_power"], power, rel_tol=1e-12)
+    tight = SMALL.replace("peak_torque = 2e6", f"peak_torque = 2e6\npeak_power = {0.9 * power!r}")
+    d2 = ds.load_design(write(tmp_path, tight, "p.toml"))
+    p = ds.evaluate(d2, {"control.M0": 1.5e6})
+    assert not p.feasible and p.failed == ("peak_power",)
+    assert math.isclose(p.margin, 1 - 1 / 0.9, rel_tol=1e-9)
+
+
+def test_a_brake_force_bound_needs_a_device(tmp_path, capsys):
+    path = write(tmp_path, SMALL.replace("peak_torque = 2e6", "peak_torque = 2e6\n"
+                                         "brake_force = 5e4"))
+    assert main(["design", str(path), "-o", str(tmp_path / "out"), "--no-fe"]) == 2
+    err = capsys.readouterr().err
+    assert "bounds.brake_force" in err and len(err.strip().splitlines()) == 1
