@@ -48,7 +48,7 @@ def _print_table(cols, rows):
 
 
 def _client(args):
-    from spinweb_fe.sweep.chart import dask_client
+    from spinweb_fe.sweep.run import dask_client
 
     if args.scheduler and args.workers != 2:
         log.warning("--workers is ignored with --scheduler (the cluster has its own workers)")

@@ -7,7 +7,6 @@ chart.csv / .json / .png (docs/design.md).
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import dataclasses
 import json
@@ -19,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.errors import InputError
 from spinweb_fe.sweep.design import (BOUNDS, OBJECTIVES, Design, Evaluator, Point, _num, bisect,
                                      build_case, case_raw, check_cases, evaluate, judge_point,
                                      load_design, metrics_of)
@@ -102,36 +101,6 @@ def safe_step(d: Design, p: Point, points, k: int) -> dict | None:
     if np.any(nu < -1e-12) or np.any(nu > 1 + 1e-12):
         return None
     return d.from_unit(nu)
-
-
-@contextlib.contextmanager
-def dask_client(scheduler=None, workers=1):
-    """A Dask client: a running scheduler's, or a LocalCluster of ``workers`` processes
-    with one thread each (sweep.run's set-up, Dask's log lines silenced)."""
-    from dask.distributed import Client, LocalCluster
-
-    from spinweb_fe.sweep.run import _quiet_dask
-
-    with _quiet_dask():
-        cluster = None
-        try:
-            if scheduler:
-                client = Client(scheduler, timeout="10s")
-            else:
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0", silence_logs=logging.WARNING)
-                client = Client(cluster)
-        except (OSError, TimeoutError) as exc:
-            if cluster is not None:
-                cluster.close()
-            raise RunError(f"cannot start or reach the Dask cluster "
-                           f"{scheduler or '(local)'}: {exc}") from None
-        try:
-            yield client
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
 
 
 def fe_point(d: Design, values: dict, row: dict, out_dir: Path, extra=None) -> Point:

@@ -390,8 +390,8 @@ def execute(sweep: Sweep, out_dir, scheduler=None, workers=2, progress=True) -> 
         Address of a running Dask scheduler (``tcp://host:8786``); default: a LocalCluster
         of ``workers`` processes with one thread each.
     """
-    with _quiet_dask():
-        return _execute(sweep, Path(out_dir).resolve(), scheduler, workers, progress)
+    with dask_client(scheduler, workers) as client:
+        return _execute(sweep, Path(out_dir).resolve(), client, scheduler, workers, progress)
 
 
 @contextlib.contextmanager
@@ -412,44 +412,57 @@ def _quiet_dask():
             logging.getLogger(n).setLevel(level)
 
 
-def _execute(sweep, out_dir, scheduler, workers, progress):
-    from dask.distributed import Client, LocalCluster, as_completed
+@contextlib.contextmanager
+def dask_client(scheduler=None, workers=2):
+    """A Dask client (the sweep's and the design's): a running scheduler's, or a
+    LocalCluster of ``workers`` processes with one thread each; Dask's log lines silenced;
+    client and cluster closed at the end. RunError if the cluster cannot be started or
+    reached."""
+    from dask.distributed import Client, LocalCluster
 
-    cluster = None
-    try:
-        if scheduler:
-            client = Client(scheduler, timeout="10s")
-        else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", silence_logs=logging.WARNING)
-            client = Client(cluster)
-    except (OSError, TimeoutError) as exc:
-        if cluster is not None:
-            cluster.close()
-        raise RunError(f"cannot start or reach the Dask cluster "
-                       f"{scheduler or '(local)'}: {exc}") from None
+    with _quiet_dask():
+        cluster = None
+        try:
+            if scheduler:
+                client = Client(scheduler, timeout="10s")
+            else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                       processes=True, dashboard_address=":0",
+                                       silence_logs=logging.WARNING)
+                client = Client(cluster)
+        except (OSError, TimeoutError) as exc:
+            if cluster is not None:
+                cluster.close()
+            raise RunError(f"cannot start or reach the Dask cluster "
+                           f"{scheduler or '(local)'}: {exc}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def _execute(sweep, out_dir, client, scheduler, workers, progress):
+    from dask.distributed import as_completed
+
     rows = [None] * len(sweep.runs)
-    try:
-        log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
-                 scheduler or f"a local Dask cluster of {workers} worker process(es)")
-        futures = {}
-        for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
-            task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
-                    "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
-            fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
-            futures[fut] = pos
-        for done, fut in enumerate(as_completed(futures), start=1):
-            i = futures[fut]
-            try:
-                rows[i] = fut.result()
-            except Exception as exc:  # the worker died or the task was lost
-                rows[i] = _failed(exc)
-            if progress:
-                log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
-                         rows[i]["status"], rows[i].get("wall_time_s", math.nan))
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
+             scheduler or f"a local Dask cluster of {workers} worker process(es)")
+    futures = {}
+    for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
+        task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
+                "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
+        fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
+        futures[fut] = pos
+    for done, fut in enumerate(as_completed(futures), start=1):
+        i = futures[fut]
+        try:
+            rows[i] = fut.result()
+        except Exception as exc:  # the worker died or the task was lost
+            rows[i] = _failed(exc)
+        if progress:
+            log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
+                     rows[i]["status"], rows[i].get("wall_time_s", math.nan))
     return rows
 
