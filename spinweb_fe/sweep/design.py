@@ -35,25 +35,24 @@ log = logging.getLogger(__name__)
 TOP_KEYS = ("title", "base", "law", "minimise", "require", "candidates", "refine",
             "refine_step", "scan", "rtol", "maxiter", "search", "set", "tie", "bounds", "fe",
             "chart")
-#: objective -> (units, what is minimised)
-OBJECTIVES = {
-    "deploy_time": ("s", "time to full deployment (every arm at 0.95 of its length)"),
+#: metric of a judged point -> (units, what it is); FE and analytic alike
+METRICS = {
+    "deploy_time": ("s", "the verdict's deployment time: every tip at deployed_fraction of "
+                         "its deployed distance from the axis, staying there"),
     "peak_torque": ("N m", "largest |hub torque|"),
     "peak_power": ("W", "largest |hub torque x hub rate|"),
     "swing": ("rad", "in-plane swing of the arms after deployment"),
     "max_tension": ("N", "largest arm (analytic) or cable (FE) tension"),
-    "brake_force": ("N", "largest line tension at the payout device"),
-    "parameter": ("", "the searched value itself (one searched key): the least M0, ..."),
-}
-#: bound -> (units, what is limited from above)
-BOUNDS = {
-    "peak_torque": ("N m", "largest |hub torque|"),
-    "peak_power": ("W", "largest |hub torque x hub rate|"),
     "brake_force": ("N", "largest line tension at the payout device (reel or brake)"),
-    "deploy_time": ("s", "time to full deployment"),
-    "max_tension": ("N", "largest tension"),
-    "strength": ("1", "true: no overstrain (utilisation <= 1; needs cable.failure_strain)"),
 }
+#: objective -> (units, what is minimised)
+OBJECTIVES = {**METRICS,
+              "parameter": ("", "the searched value itself (one searched key): the least M0")}
+#: bound -> (units, what is limited from above)
+BOUNDS = {**{k: METRICS[k] for k in ("peak_torque", "peak_power", "brake_force",
+                                     "deploy_time", "max_tension")},
+          "strength": ("1", "true: no overstrain (utilisation <= 1; needs "
+                            "cable.failure_strain)")}
 BIG = 1e30  # the penalised score of an infeasible point: BIG (1 + its violation)
 
 
