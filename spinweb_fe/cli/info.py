@@ -77,7 +77,6 @@ def judge_file(h5, h) -> list:
 
     import numpy as np
 
-    from spinweb_fe.fe.control import LAWS
     from spinweb_fe.io.mesh import read_mesh_group
     from spinweb_fe.record import verdict
 
@@ -91,11 +90,11 @@ def judge_file(h5, h) -> list:
     status = str(h5.attrs.get("status", "completed"))
     if h5.attrs.get("stopped"):
         status = f"stopped: {h5.attrs['stopped']}"
-    return verdict.judge(h, full, r0, verdict.limits_of(case.get("verdict")), status=status,
-                         failure_strain=case.get("cable", {}).get("failure_strain"),
-                         out_of_plane="out_of_plane_max" in h,
-                         gravity=bool(case.get("environment", {}).get("gravity_gradient")),
-                         prescribed=LAWS[case.get("control", {}).get("law", "free")].prescribes_rate)
+    terms = verdict.case_terms(case)
+    if "mesh" not in h5:  # the analytical model: no failure strain, no gravity gradient
+        terms.update(failure_strain=None, gravity=False)
+    return verdict.judge(h, full, r0, status=status, out_of_plane="out_of_plane_max" in h,
+                         **terms)
 
 
 def _live(path, h) -> str:

@@ -129,10 +129,7 @@ def _deployment(t, radius, reach, lim):
     least share at the end."""
     frac = lim["deployed_fraction"]
     ratio = radius / reach
-    out = ratio >= frac
-    # deployed for good: from the row after the last one in which some arm was short
-    short = ~np.all(out, axis=1)
-    i_dep = len(t) - int(np.argmax(short[::-1])) if short.any() else 0
+    short, i_dep = _for_good(ratio, frac)
     by = lim["deploy_by"]
     first, t_first = _first(~short, t)
     if i_dep >= len(t):
@@ -153,11 +150,17 @@ def _deployment(t, radius, reach, lim):
     return i_dep, Criterion("deployed", True, float(ratio[-1].min()), frac, detail=detail)
 
 
+def _for_good(ratio, fraction):
+    """((T,) rows in which some tip is short of ``fraction`` of its reach, the first row
+    from which none is to the end: the row after the last short one; T if the last is)."""
+    short = ~np.all(ratio >= fraction, axis=1)
+    return short, len(short) - int(np.argmax(short[::-1])) if short.any() else 0
+
+
 def deploy_time(t, radius, reach, fraction) -> float:
     """[s] first time from which every tip stays at least ``fraction`` of its deployed
     distance from the hub axis to the end (NaN: not deployed at the end)."""
-    short = ~np.all(radius / reach >= fraction, axis=1)
-    i = len(t) - int(np.argmax(short[::-1])) if short.any() else 0
+    i = _for_good(radius / reach, fraction)[1]
     return float(t[i]) if i < len(t) else math.nan
 
 
@@ -260,6 +263,18 @@ def momentum_error(h, prescribed: bool = False) -> float:
     return float(np.max(np.abs(K - K[0] - imp))) / scale
 
 
+def case_terms(case: dict) -> dict:
+    """:func:`judge`'s keyword arguments that a case decides, from its resolved dict
+    (Case.to_dict(), or a result file's ``case`` attribute): the [verdict] thresholds, the
+    failure strain, the gravity gradient, whether the law prescribes the hub rate."""
+    from spinweb_fe.fe.control import LAWS
+
+    return {"limits": limits_of(case.get("verdict")),
+            "failure_strain": case.get("cable", {}).get("failure_strain"),
+            "gravity": bool(case.get("environment", {}).get("gravity_gradient")),
+            "prescribed": LAWS[case.get("control", {}).get("law", "free")].prescribes_rate}
+
+
 def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "completed",
           slack_share: float | None = None, failure_strain: float | None = None,
           out_of_plane: bool = False, gravity: bool = False, prescribed: bool = False) -> list:
@@ -291,7 +306,7 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
     prescribed : bool
         The control law prescribes the hub rate (its torque is a reaction).
     """
-    lim = limits_of(limits) if limits is None or "deploy_by" not in limits else limits
+    lim = limits_of(limits)
     t = np.asarray(h["time"], dtype=float)
     phi = np.asarray(h["arm_angle"], dtype=float).reshape(len(t), -1)
     reach = np.broadcast_to(np.asarray(reach, dtype=float), (phi.shape[1],)).copy()

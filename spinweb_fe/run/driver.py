@@ -22,7 +22,6 @@ from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
 from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
                                       write_checkpoint)
-from spinweb_fe.fe.control import LAWS
 from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
 from spinweb_fe.io.results import ResultWriter
 from spinweb_fe.io.space import DiskGuard
@@ -226,13 +225,10 @@ def _judge(writer, case, model, state, status):
             return
         broken = state.strength.broken if model.strength.rupture else None
         crits = verdict.judge(
-            h, verdict.reach_of(model.mesh), model.mesh.hub_radius, verdict.limits_of(case.verdict),
-            status="completed" if status == "completed" else status,
+            h, verdict.reach_of(model.mesh), model.mesh.hub_radius, status=status,
             slack_share=verdict.slack_share(state.node_pos, model.elements.nodes,
                                             model.elements.rest_len, broken),
-            failure_strain=case.cable.failure_strain, out_of_plane="out_of_plane_max" in h,
-            gravity=bool(case.environment and case.environment.gravity_gradient),
-            prescribed=LAWS[case.control.law].prescribes_rate)
+            out_of_plane="out_of_plane_max" in h, **verdict.case_terms(case.to_dict()))
         verdict.write_group(writer.h5, crits)
         writer.h5.flush()
         lines = verdict.report(crits)
