@@ -291,9 +291,16 @@ def history_metrics(h: dict, reach, hub_radius: float,
             "max_tension_N": float(np.max(h["max_tension"]))}
 
 
-def fe_metrics(path) -> dict:
-    """:func:`history_metrics` of an FE ``results.h5`` (the deployed reach from ``/mesh``,
-    the deployed share from the case's [verdict])."""
+def fe_metrics(path) -> tuple:
+    """(:func:`history_metrics`, the verdict's criteria) of an FE ``results.h5``, read in one
+    opening (the deployed reach from ``/mesh``, the deployed share from the case's
+    [verdict], the criteria from ``/verdict``, which the driver writes).
+
+    Raises
+    ------
+    RunError
+        The file has no verdict (the run could not be judged).
+    """
     import h5py
 
     from spinweb_fe.io.mesh import read_mesh_group
@@ -304,8 +311,11 @@ def fe_metrics(path) -> dict:
         keys = ("time", "tip_position", "hub_position", "hub_axis", "hub_torque", "hub_omega",
                 "max_tension")
         h = {k: h5["history"][k][()] for k in keys if k in h5["history"]}
+        crits = verdict.read_group(h5)
+    if crits is None:
+        raise RunError(f"{path} has no verdict (the run could not be judged: see run.log)")
     frac = verdict.limits_of(case.get("verdict"))["deployed_fraction"]
-    return history_metrics(h, verdict.reach_of(mesh), mesh.hub_radius, frac)
+    return history_metrics(h, verdict.reach_of(mesh), mesh.hub_radius, frac), crits
 
 
 def run_one(task: dict) -> dict:
@@ -330,8 +340,7 @@ def run_one(task: dict) -> dict:
             from spinweb_fe.run.driver import run_case
 
             run_case(case, out, progress=False)
-            metrics = fe_metrics(out / "results.h5")
-            crits = _file_verdict(out / "results.h5")
+            metrics, crits = fe_metrics(out / "results.h5")
         else:
             from spinweb_fe.analytic import solve as analytic
 
@@ -358,17 +367,6 @@ def run_one(task: dict) -> dict:
         handler.close()
         spin_log.propagate, spin_log.level = saved
     return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
-
-
-def _file_verdict(path) -> list:
-    """The criteria of an FE result file's /verdict group (the driver writes it)."""
-    import h5py
-
-    with h5py.File(path, "r") as h5:
-        crits = verdict.read_group(h5)
-    if crits is None:
-        raise RunError(f"{path} has no verdict (the run could not be judged: see run.log)")
-    return crits
 
 
 def _failed(exc) -> dict:
