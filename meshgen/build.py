@@ -9,6 +9,7 @@ import numpy as np
 from meshgen.checks import MeshValueError
 from meshgen.flat import default_cutout, effective_cutout, flat_quadquad
 from meshgen.fold import fold_web
+from meshgen.layers import check_gap
 from meshgen.mesh import Mesh
 from meshgen.registry import topology
 from meshgen.tethers import tethers
@@ -38,7 +39,8 @@ def quadquad_cutout(side: float, mesh_width: float, hub_radius: float,
 
 def web_mesh(name: str, side: float, mesh_width: float, elements_per_segment: int,
              corner_mass: float, hub_radius: float, hub_cutout: float | None = None,
-             pattern: str = "star", wrap: str = "trailing", ties: str = "frame") -> Mesh:
+             pattern: str = "star", wrap: str = "trailing", ties: str = "frame",
+             layer_gap: float = 0.0) -> Mesh:
     """Initial mesh of a web scene.
 
     A quadquad web is tied to the hub as ``ties`` says (``frame``: the whole boundary of the
@@ -59,6 +61,9 @@ def web_mesh(name: str, side: float, mesh_width: float, elements_per_segment: in
     pattern : {'star', 'flat'}
     wrap : {'trailing', 'leading'}
     ties : {'frame', 'axes'}
+    layer_gap : float [m]
+        g >= 0: stack the star fold's layers and the coil's passes at least g apart
+        (quadquad, ``star``, ``frame`` only; docs/mesh.md 2.9).
 
     Returns
     -------
@@ -66,10 +71,12 @@ def web_mesh(name: str, side: float, mesh_width: float, elements_per_segment: in
         ``node_pos`` is the initial (folded) state, ``node_ref`` the flat deployed state.
     """
     topology(name)
+    if check_gap(layer_gap) > 0 and pattern == "flat":
+        raise MeshValueError("layer_gap", "the flat web has no layers (fold.pattern = 'flat')")
     if name == "quadquad":
         c = quadquad_cutout(side, mesh_width, hub_radius, hub_cutout)
         flat = flat_quadquad(side, mesh_width, elements_per_segment, corner_mass, c)
-        return fold_web(flat, hub_radius, pattern, wrap, ties)
+        return fold_web(flat, hub_radius, pattern, wrap, ties, layer_gap)
     cut = hub_radius if hub_cutout is None else hub_cutout
     if pattern == "star":
         # a hole shaped like the outline: its boundary is the hub frame of the fold
@@ -79,7 +86,7 @@ def web_mesh(name: str, side: float, mesh_width: float, elements_per_segment: in
         c = outline_cutout(name, side, mesh_width, cut)
         flat = flat_other(name, side, mesh_width, elements_per_segment, corner_mass, c,
                           hole="outline")
-        return fold_web(flat, hub_radius, "star", wrap, "frame")
+        return fold_web(flat, hub_radius, "star", wrap, "frame", layer_gap)
     # flat: the generator cuts a disc of this radius and ties its rim
     return _tie_innermost(flat_web(name, side, mesh_width, elements_per_segment, corner_mass,
                                    cut), hub_radius)

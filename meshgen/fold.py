@@ -24,7 +24,10 @@ the corner k at psi_k), split the web into n kites; kite k becomes arm k.
 
 Each stage is 1-Lipschitz (a nearest-point projection onto a convex set is, and l is),
 so no element is ever longer than its rest length (checked by
-:func:`meshgen.checks.check_mesh`).
+:func:`meshgen.checks.check_mesh`). With ``layer_gap`` g > 0 (:mod:`meshgen.layers`) the
+gathered layers stand in columns along z and the coil rises along the hub axis, so that no
+two elements that share no node start closer than g; the radial run is then shortened by
+the factor s that keeps every tilted element within its rest length.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ import math
 import numpy as np
 
 from meshgen.checks import MeshValueError
+from meshgen.layers import (check_clearance, check_columns, check_gap, column_height,
+                            layer_plan)
 from meshgen.mesh import POLYGON_COS, POLYGON_TAN, Mesh
 from meshgen.registry import TIES, WEB_FOLDS, WRAP_SIGN
 
@@ -263,7 +268,7 @@ def leg_path(l: np.ndarray, beta: np.ndarray, sigma: np.ndarray, c: float,
     return np.column_stack([r * np.cos(ang), r * np.sin(ang)])
 
 
-def star_fold(mesh: Mesh) -> Mesh:
+def star_fold(mesh: Mesh, layer_gap: float = 0.0) -> Mesh:
     """Star fold of a web with arm data (:func:`assign_arms`), arms uncoiled.
 
     - Half-axis j (all its nodes): at T_j = c u_j (zero-length elements).
@@ -281,14 +286,25 @@ def star_fold(mesh: Mesh) -> Mesh:
     stretched. Nodes with equal (arm, leg, l) coincide: the mesh lines are gathered
     (concertina) across the arm. The tie mode is read from the mesh (:func:`tie_mode`).
 
+    ``layer_gap`` g > 0 (``frame`` ties, square mesh: :mod:`meshgen.layers`, docs/mesh.md
+    2.9) stacks the gathered layers in columns along z, g apart, centred on the hub plane,
+    and shortens the radial run by the plan's factor s: (r_c + s (l - l_c)).
+
     Returns
     -------
     Mesh
-        New ``node_pos`` (z = 0); everything else unchanged.
+        New ``node_pos`` (z = 0 without a gap); everything else unchanged.
     """
+    g = check_gap(layer_gap)
     ties = tie_mode(mesh)
+    if g > 0 and ties != "frame":
+        raise MeshValueError("layer_gap", "stacked layers need fold.ties = 'frame' (the axes "
+                             "fold lays its root legs on the rim, under the coil)")
     ref = mesh.node_ref
-    psi, c, (arm, cross, half, l, _) = _hole(mesh, _tol(mesh))
+    tol = _tol(mesh)
+    if g > 0:
+        check_columns(mesh, tol)
+    psi, c, (arm, cross, half, l, _) = _hole(mesh, tol)
     n = len(psi)
     r0 = mesh.hub_radius
     u, u_psi = half_axes(psi), _unit(psi)
@@ -308,10 +324,16 @@ def star_fold(mesh: Mesh) -> Mesh:
         xy[leg] = leg_path(l[leg], beta, sigma, c, r0)
         r_c = r0
     out = (arm >= 0) & ~leg
-    r = r_c + l[out] - l_c
+    if g > 0:
+        plan = layer_plan(mesh, g, l_c, columns=True)
+        r = r_c + plan.arc(l[out]) - l_c
+        z = column_height(mesh, c, plan.eta)
+    else:
+        r = r_c + l[out] - l_c
+        z = np.zeros(mesh.n_nodes)
     xy[out] = r[:, None] * u_psi[arm[out]]
     xy[mesh.node_sets["hub_tied"]] = ref[mesh.node_sets["hub_tied"], :2]
-    pos = np.column_stack([xy, np.zeros(mesh.n_nodes)])
+    pos = np.column_stack([xy, z])
     return mesh.replace(node_pos=pos)
 
 
@@ -322,7 +344,8 @@ def _lead_in(mesh: Mesh) -> float:
     return 0.0 if c is None else mesh.arm_root_coord - corner_coord(c, mesh.n_arms)
 
 
-def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Mesh:
+def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None,
+         layer_gap: float = 0.0) -> Mesh:
     """Wind every arm that is straight and radial beyond its root onto the hub rim.
 
     With l0 = ``arm_root_coord`` (where the coil meets the rim) and d = ``lead_in``: a
@@ -330,7 +353,11 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
     angle psi_k (radially in to the rim), and a node with l >= l0 to the rim point at
     angle psi_k - w (l - l0) / r0, w = +1 (trailing: clockwise, against a positive spin
     about +z) or -1 (leading). Arc length is preserved, chords are shorter: no element is
-    stretched. Successive turns overlap (no cable-cable contact is modelled).
+    stretched. Without a layer gap successive turns overlap (no cable-cable contact is
+    modelled); with ``layer_gap`` g > 0 (:mod:`meshgen.layers`, docs/mesh.md 2.9) l is
+    replaced by the in-plane arc q(l) of the plan and the coil rises along z (each node
+    keeps the z of its layer and adds the rise Z), so that the passes clear each other,
+    the spokes and the layers by at least g.
 
     The input arm is straight and radial from radius r0 + d at l = l0 - d outwards
     (:func:`star_fold`; tethers and the ``axes`` web: d = 0, the arm starts on the rim;
@@ -344,6 +371,8 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
     wrap : {'trailing', 'leading'}
     lead_in : float or None [m]
         d; None: c / cos(pi/n) - r0 for a ``frame``-tied web (:func:`tie_mode`), else 0.
+    layer_gap : float [m]
+        g >= 0, as given to :func:`star_fold` (webs: ``frame`` ties only).
 
     Returns
     -------
@@ -357,32 +386,47 @@ def coil(mesh: Mesh, wrap: str = "trailing", lead_in: float | None = None) -> Me
     if r0 <= 0:
         raise MeshValueError("hub_radius", "coiling needs a hub radius > 0")
     w = WRAP_SIGN[wrap]
+    g = check_gap(layer_gap)
     d = _lead_in(mesh) if lead_in is None else float(lead_in)
     l0 = mesh.arm_root_coord
     sel = np.flatnonzero(mesh.node_arm >= 0)
     sel = sel[mesh.node_arm_coord[sel] >= l0 - d]
     sel = np.setdiff1d(sel, mesh.node_sets["hub_tied"])   # tied nodes never move
     lk = mesh.node_arm_coord[sel]
+    qk, z = lk, np.zeros(len(sel))
+    if g > 0:
+        c = _frame_hole(mesh)
+        if c is None and "cross" in mesh.node_sets:
+            raise MeshValueError("layer_gap", "stacked layers need fold.ties = 'frame'")
+        plan = layer_plan(mesh, g, l0 - d, columns=c is not None)
+        if c is not None:
+            check_clearance(c, r0, plan)
+        qk, z = plan.arc(lk), mesh.node_pos[sel, 2] + plan.lift(lk)
     psi = mesh.arm_root_angle[mesh.node_arm[sel]]
-    spoke = lk < l0
-    r = np.where(spoke, r0 + (l0 - lk), r0)
-    ang = np.where(spoke, psi, psi - w * (lk - l0) / r0)
+    spoke = qk < l0
+    r = np.where(spoke, r0 + (l0 - qk), r0)
+    ang = np.where(spoke, psi, psi - w * (qk - l0) / r0)
     pos = np.array(mesh.node_pos)
-    pos[sel] = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(len(sel))])
+    pos[sel] = np.column_stack([r * np.cos(ang), r * np.sin(ang), z])
     sets = dict(mesh.node_sets)
     sets["coil"] = sel  # what the stowage holds: the lead-in and the turns on the rim
     return mesh.replace(node_pos=pos, wrap=w, node_sets=sets)
 
 
 def fold_web(mesh: Mesh, hub_radius: float, pattern: str = "star",
-             wrap: str = "trailing", ties: str = "frame") -> Mesh:
+             wrap: str = "trailing", ties: str = "frame", layer_gap: float = 0.0) -> Mesh:
     """Flat web with an outline-shaped hole -> arms + ties (``flat``) or star fold + coil
     (``star``); ``ties`` = ``frame`` (the whole hole boundary, default) or ``axes``
-    (4 nodes, square web only)."""
+    (4 nodes, square web only); ``layer_gap`` g > 0 stacks the layers and the coil's
+    passes g apart (``star``, ``frame``, square mesh; docs/mesh.md 2.9)."""
     if pattern not in WEB_FOLDS:
         raise MeshValueError("pattern", f"unknown web fold '{pattern}' "
                              f"(valid: {', '.join(WEB_FOLDS)})")
+    g = check_gap(layer_gap)
     web = assign_arms(mesh, hub_radius, ties)
     if pattern == "flat":
+        if g > 0:
+            raise MeshValueError("layer_gap", "the flat web has no layers (fold.pattern = "
+                                 "'flat')")
         return web
-    return coil(star_fold(web), wrap)
+    return coil(star_fold(web, g), wrap, layer_gap=g)

@@ -12,12 +12,14 @@ import numpy as np
 
 from meshgen.checks import MeshValueError
 from meshgen.fold import coil
+from meshgen.layers import check_gap
 from meshgen.mesh import Mesh
 from meshgen.registry import TETHER_FOLDS
 
 
 def tethers(count: int, length: float, elements: int, hub_radius: float,
-            tip_mass: float, pattern: str = "coiled", wrap: str = "trailing") -> Mesh:
+            tip_mass: float, pattern: str = "coiled", wrap: str = "trailing",
+            layer_gap: float = 0.0) -> Mesh:
     """n tethers of length H, each of m elements, tied to the hub rim.
 
     Tether j is rooted on the rim at theta_j = 2 pi j / n (radius r0, z = 0) and carries
@@ -39,6 +41,9 @@ def tethers(count: int, length: float, elements: int, hub_radius: float,
     tip_mass : float [kg]
     pattern : {'coiled', 'straight'}
     wrap : {'trailing', 'leading'}
+    layer_gap : float [m]
+        g >= 0: with g > 0 the coil rises along z so that its passes (each tether over
+        the others and over its own turns) are at least g apart (docs/mesh.md 2.9).
 
     Returns
     -------
@@ -61,6 +66,9 @@ def tethers(count: int, length: float, elements: int, hub_radius: float,
     if pattern not in TETHER_FOLDS:
         raise MeshValueError("pattern", f"unknown tether fold '{pattern}' "
                              f"(valid: {', '.join(TETHER_FOLDS)})")
+    if check_gap(layer_gap) > 0 and pattern != "coiled":
+        raise MeshValueError("layer_gap", f"straight tethers have no layers (fold.pattern = "
+                             f"'{pattern}')")
     theta = 2.0 * math.pi * np.arange(n) / n
     s = np.arange(m + 1) * (length / m)
     r = hub_radius + s
@@ -80,4 +88,4 @@ def tethers(count: int, length: float, elements: int, hub_radius: float,
                 node_arm=np.repeat(np.arange(n), m + 1), node_arm_coord=np.tile(s, n),
                 arm_root_angle=theta, arm_length=float(length), arm_root_coord=0.0,
                 hub_radius=float(hub_radius), wrap=0)
-    return coil(mesh, wrap) if pattern == "coiled" else mesh
+    return coil(mesh, wrap, layer_gap=layer_gap) if pattern == "coiled" else mesh

@@ -227,6 +227,7 @@ def _cross_check(src, scene, raw, t):
         raise InputError(src, "fold.pattern",
                          f"'{fold['pattern']}' is not a {scene} fold (valid: {', '.join(allowed)})")
     _check_stowage(src, scene, raw, t)
+    _check_layers(src, scene, t)
     _check_start(src, t)
     _check_free_hub(src, t)
     _check_perturbation(src, scene, t)
@@ -285,6 +286,23 @@ def _check_stowage(src, scene, raw, t):
     if st["bundle"] != "none" and scene != "web":
         raise InputError(src, "stowage.bundle", "bundles gather a web's levels: a tether "
                          "scene has none")
+
+
+def _check_layers(src, scene, t):
+    """fold.layer_gap > 0: a coiled scene whose stowage keeps a level's layers apart (the
+    mesh generator checks the geometry: meshgen.layers)."""
+    st, pattern = t["stowage"], t["fold"]["pattern"]
+    if t["fold"]["layer_gap"] == 0:
+        return
+    if pattern not in COILED_FOLDS:
+        raise InputError(src, "fold.layer_gap", f"only a folded scene has layers (fold.pattern "
+                         f"= '{pattern}')")
+    if st["bundle"] != "none":
+        raise InputError(src, "fold.layer_gap", "a bundle (stowage.bundle) moves each level "
+                         "as one point, its layers merged: needs layer_gap = 0")
+    if scene == "web" and PAYOUTS[st["payout"]].code >= PAYOUTS["rate"].code:
+        raise InputError(src, "fold.layer_gap", f"a {st['payout']} device lets each level out "
+                         "at one point: needs layer_gap = 0 on a web")
 
 
 def _check_start(src, t):

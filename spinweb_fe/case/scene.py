@@ -38,10 +38,11 @@ _WEB_KEYS = {"side": "web.side", "mesh_width": "web.mesh_width",
              "elements_per_segment": "web.elements_per_segment",
              "hub_cutout": "web.hub_cutout", "hub_radius": "hub.radius",
              "topology": "web.topology", "pattern": "fold.pattern", "wrap": "fold.wrap",
-             "ties": "fold.ties", "corner_mass": "tip_mass.mass"}
+             "ties": "fold.ties", "corner_mass": "tip_mass.mass", "layer_gap": "fold.layer_gap"}
 _TETHER_KEYS = {"count": "tethers.count", "length": "tethers.length",
                 "elements": "tethers.elements", "hub_radius": "hub.radius",
-                "tip_mass": "tip_mass.mass", "pattern": "fold.pattern", "wrap": "fold.wrap"}
+                "tip_mass": "tip_mass.mass", "pattern": "fold.pattern", "wrap": "fold.wrap",
+                "layer_gap": "fold.layer_gap"}
 
 
 class Scene(NamedTuple):
@@ -69,11 +70,11 @@ def build_mesh(case) -> Mesh:
             w, f = case.web, case.fold
             mesh = web_mesh(w.topology, w.side, w.mesh_width, w.elements_per_segment,
                             case.tip_mass.mass, case.hub.radius, w.hub_cutout, f.pattern,
-                            f.wrap, f.ties)
+                            f.wrap, f.ties, f.layer_gap)
         else:
             t = case.tethers
             mesh = tethers(t.count, t.length, t.elements, case.hub.radius, case.tip_mass.mass,
-                           case.fold.pattern, case.fold.wrap)
+                           case.fold.pattern, case.fold.wrap, case.fold.layer_gap)
     except MeshValueError as exc:
         raise InputError(case.source, keys.get(exc.param, case.scene), exc.reason) from None
     problems = check_mesh(mesh)

@@ -117,6 +117,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "wrap": F("str", "trailing", tuple(WRAP_SIGN), "", "coil direction relative to the spin"),
         "ties": F("str", "frame", tuple(TIES), "", "hub attachment of the star-folded web: the "
                   "whole hole boundary (frame) or the 4 axis nodes (axes)"),
+        "layer_gap": F("float", 0.0, "nonneg", "m", "least distance between two cables "
+                       "that share no node in the folded and coiled start: the star fold's "
+                       "layers stacked along the hub axis, the coil rising pass over pass "
+                       "(0: layers and turns coincide; docs/mesh.md 2.9)"),
     },
     "stowage": {
         **_choice("coil", COILS, None, "coiled scenes: held (the coil turns with the hub "
