@@ -62,6 +62,7 @@ class Case:
     perturbation: Any = None
     environment: Any = None
     verdict: Any = None
+    audit: Any = None
 
     @property
     def scene(self) -> str:

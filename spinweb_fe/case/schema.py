@@ -181,6 +181,17 @@ SCHEMA: dict[str, dict[str, Field]] = {
                     "within this share of the energy scale"),
         "momentum": F("float", VERDICT["momentum"], "pos", "", "momentum audit: K - K0 - "
                       "torque impulse within this share of max |K|"),
+        "crossings": F("int", VERDICT["crossings"], "nonneg", "", "tangled: more crossings "
+                       "of cable elements than this (needs audit.crossings)"),
+    },
+    "audit": {
+        "crossings": F("bool", False, None, "", "count every crossing of two cable elements "
+                       "(history crossings, table /crossings; the loop then runs a step per "
+                       "call: docs/results.md)"),
+        "skin": F("float", 0.05, "pos", "m", "crossings: the broad phase's skin (rebuilt "
+                  "when a node has moved half of it in the hub's frame)"),
+        "touch": F("float", 1e-3, "nonneg", "m", "crossings: pairs closer than this when "
+                   "they enter the list (stacked layers) are left out until they separate"),
     },
     "time": {
         "end": F("float", REQUIRED, "pos", "s", "end time"),

@@ -241,6 +241,8 @@ def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
         e, f = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
+        if _apart(pos0, pos1, a, b, c, d):
+            continue
         k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
                            pos0[d], pos1[d], times, signs)
         for i in range(k):
@@ -251,3 +253,75 @@ def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
                 out_s[n] = signs[i]
             n += 1
     return n
+
+
+@njit(inline="always")
+def _apart(pos0, pos1, a, b, c, d):
+    """True when the boxes that elements ab and cd sweep over the step are disjoint (they
+    cannot meet: the narrow phase is skipped)."""
+    for k in range(3):
+        lo1 = min(pos0[a, k], pos1[a, k], pos0[b, k], pos1[b, k])
+        hi1 = max(pos0[a, k], pos1[a, k], pos0[b, k], pos1[b, k])
+        lo2 = min(pos0[c, k], pos1[c, k], pos0[d, k], pos1[d, k])
+        hi2 = max(pos0[c, k], pos1[c, k], pos0[d, k], pos1[d, k])
+        if lo1 > hi2 or lo2 > hi1:
+            return True
+    return False
+
+
+@njit(cache=True)
+def segment_distance(p, q, r, s):
+    """The least distance [m] between the segments pq and rs (closest points clamped to
+    both segments; parallel segments handled)."""
+    d1 = q - p
+    d2 = s - r
+    w = p - r
+    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
+    f = d2[0] * w[0] + d2[1] * w[1] + d2[2] * w[2]
+    if a <= 0.0 and e <= 0.0:
+        return np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    if a <= 0.0:
+        sc, tc = 0.0, min(max(f / e, 0.0), 1.0)
+    else:
+        c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
+        if e <= 0.0:
+            sc, tc = min(max(-c / a, 0.0), 1.0), 0.0
+        else:
+            b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+            den = a * e - b * b
+            sc = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
+            tc = (b * sc + f) / e
+            if tc < 0.0:
+                tc, sc = 0.0, min(max(-c / a, 0.0), 1.0)
+            elif tc > 1.0:
+                tc, sc = 1.0, min(max((b - c) / a, 0.0), 1.0)
+    x = w + sc * d1 - tc * d2
+    return np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+
+
+@njit(cache=True)
+def pair_distances(pairs, elem_nodes, pos):
+    """(P,) the least distance [m] of each element pair at ``pos``."""
+    out = np.empty(pairs.shape[0])
+    for p in range(pairs.shape[0]):
+        e, f = pairs[p, 0], pairs[p, 1]
+        out[p] = segment_distance(pos[elem_nodes[e, 0]], pos[elem_nodes[e, 1]],
+                                  pos[elem_nodes[f, 0]], pos[elem_nodes[f, 1]])
+    return out
+
+
+@njit(cache=True)
+def moved_since(ref, pos, c, s):
+    """The largest distance [m] a node has moved from ``ref`` (its place at the broad
+    phase's build, turned back by the hub's angle then) to ``pos`` turned back by the
+    hub's angle now (c, s: its cosine and sine). Any
+    rigid frame keeps distances, so the broad phase's skin bound holds in it; the hub's
+    frame makes the spin's motion free."""
+    worst = 0.0
+    for i in range(pos.shape[0]):
+        x = c * pos[i, 0] + s * pos[i, 1]
+        y = -s * pos[i, 0] + c * pos[i, 1]
+        dx, dy, dz = x - ref[i, 0], y - ref[i, 1], pos[i, 2] - ref[i, 2]
+        worst = max(worst, dx * dx + dy * dy + dz * dz)
+    return np.sqrt(worst)

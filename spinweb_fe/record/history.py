@@ -43,12 +43,13 @@ COLUMNS = {
     "utilisation": Column("1", "failure strain given: largest strain / failure strain over "
                                "the elements and the steps since the previous row"),
     "broken_elements": Column("1", "rupture: number of broken elements"),
+    "crossings": Column("1", "audit.crossings: crossings of two cable elements so far"),
     **{c.name: Column(c.units, c.doc) for c in VECTOR},
 }
 #: columns that only some scenes or models have (a held coil, a rate payout, a failure
 #: strain, rupture, an energy term a scene may lack, the vector row)
 OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "brake_tension", "max_strain",
-             "max_strain_element", "max_strain_arm", "utilisation", "broken_elements")
+             "max_strain_element", "max_strain_arm", "utilisation", "broken_elements", "crossings")
             + tuple(t.name for t in ENERGY if t.present is not None)
             + tuple(c.name for c in VECTOR))
 #: name -> SI unit of every history dataset

@@ -45,10 +45,12 @@ CRITERIA = {
     "flatness": "out-of-plane distance of the web at the end",
     "energy": "energy balance of the run",
     "momentum": "angular momentum balance about the spin axis",
+    "tangled": "cable elements that passed through each other (the crossing audit)",
 }
 #: the [verdict] table's defaults (the case schema takes them from here)
 DEFAULTS = {"deployed_fraction": 0.8, "deploy_by": None, "recoil": 0.5, "slack_share": 0.75,
-            "swing": 0.3, "flatness": 0.05, "energy": 0.02, "momentum": 0.01}
+            "swing": 0.3, "flatness": 0.05, "energy": 0.02, "momentum": 0.01,
+            "crossings": 0}
 
 
 @dataclass(frozen=True)
@@ -348,7 +350,19 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
         m = momentum_error(h, prescribed)
         out.append(Criterion("momentum", m <= lim["momentum"], m, lim["momentum"],
                              time=math.nan if m <= lim["momentum"] else float(t[-1])))
+    out.append(_tangled(t, h, lim))
     return out
+
+
+def _tangled(t, h, lim) -> Criterion:
+    """Tangled: more crossings of cable elements than the limit (the crossing audit's
+    running count, history ``crossings``); not judged without the audit."""
+    if "crossings" not in h:
+        return Criterion("tangled", None, detail="no crossing audit (audit.crossings)")
+    n = np.asarray(h["crossings"], dtype=float)
+    i, when = _first(n > lim["crossings"], t)
+    return Criterion("tangled", i < 0, float(n[-1]), float(lim["crossings"]), time=when,
+                     detail="crossings of cable elements")
 
 
 def passed(criteria) -> bool:
@@ -370,7 +384,7 @@ def severity(criteria) -> float:
         elif c.name == "deployed" and c.units != "s":
             r = c.limit / max(c.value, 1e-300) if math.isfinite(c.value) else math.inf
         else:
-            r = c.value / c.limit if c.limit > 0 else math.inf
+            r = c.value / c.limit if c.limit > 0 else (0.0 if c.value <= 0 else math.inf)
         worst = max(worst, r if math.isfinite(r) or r > 0 else 0.0)
     return worst
 

@@ -26,6 +26,8 @@ from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
 from spinweb_fe.io.results import ResultWriter
 from spinweb_fe.io.space import DiskGuard
 from spinweb_fe.record import verdict
+from spinweb_fe.record.crossings import CrossingAudit
+from spinweb_fe.record.crossings import write_table as write_crossings
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
 from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
@@ -187,10 +189,13 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
                         checkpoint_dt)
     status = "failed"
+    audit = case.audit
+    crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings else None
     try:
         writer.set_attrs(threads=threads)
         res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
-                       resume=None if resume is None else resume.memory, threads=threads)
+                       resume=None if resume is None else resume.memory, threads=threads,
+                       crossings=crossings)
         status = res.status
         if res.status != "completed":
             status = f"{res.status} at t = {float(state.time[0]):.6g} s"
@@ -208,9 +213,23 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     finally:
         bar.end(status)  # the progress line ends even when the loop raised
         guard.release()  # room for the last attributes and the close
+        if crossings is not None:
+            _crossing_table(writer, crossings)
         _judge(writer, case, model, state, status)
         _finish(writer, steps=int(state.step[0]), status=status)
     return res
+
+
+def _crossing_table(writer, crossings):
+    """The crossing audit's /crossings table into results.h5 (a failure is reported)."""
+    try:
+        writer.drain()
+        write_crossings(writer.h5, crossings)
+        writer.h5.flush()
+        log.info("crossings: %d (broad phase built %d times)", crossings.count,
+                 crossings.rebuilds)
+    except Exception as exc:  # noqa: BLE001 - the result stays; the table is missing
+        log.error("could not write the crossings: %s", exc)
 
 
 def _judge(writer, case, model, state, status):

@@ -186,7 +186,7 @@ class _Chunks:
 
 def simulate(model: Model, control: Control, state: State, dt: float, schedule: Schedule,
              recorders=(), *, resume=None, stop=None, threads=None,
-             energy_limit=ENERGY_LIMIT) -> RunResult:
+             energy_limit=ENERGY_LIMIT, crossings=None) -> RunResult:
     """Integrate from ``state`` to ``schedule.t_end``; Python acts only at event boundaries.
 
     Parameters
@@ -211,6 +211,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         for every thread count (fixed blocks, fixed summation order: fe.forces).
     energy_limit : float
         Relative energy-balance error that stops the run (RunError).
+    crossings : spinweb_fe.record.crossings.CrossingAudit or None
+        Count the crossings of elements: the loop then runs one step per call and the audit
+        tests each step (history column ``crossings``, the running count).
 
     Returns
     -------
@@ -228,6 +231,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     audit = EnergyAudit(energy_limit)
     monitor = StrengthMonitor()
     owners = [tracker, audit, monitor, *recorders]  # everything with a memory
+    if crossings is not None:
+        owners.append(crossings)
     for owner in owners:
         if resume and owner.name in resume:
             owner.restore(resume[owner.name])
@@ -241,12 +246,27 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     compile_s = time.perf_counter() - t_compile
     for r in recorders:
         r.start(RunInfo(model, dt, n_total, step0, threads))
+    if crossings is not None:
+        crossings.build(state)
+
+    def advance(nsteps):
+        if crossings is None:
+            return chunks.advance(state, dt, nsteps)
+        for _ in range(nsteps):  # one step per call, each tested for crossings
+            pos0, t0 = state.node_pos.copy(), float(state.time[0])
+            code, nrec = chunks.advance(state, dt, 1)
+            if nrec or code:
+                collect(code, nrec)
+            crossings.step(pos0, state, t0, dt)
+        return 0, 0
 
     def memory():
         return {o.name: o.memory() for o in owners if o.name}
 
     def collect(code, nrec):
         rows = chunks.rows(nrec)
+        if crossings is not None:
+            rows["crossings"] = np.full(nrec, float(crossings.count))
         if nrec:
             for r in recorders:
                 r.rows(rows)
@@ -290,7 +310,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if ck_every:
             target = min(target, (n // ck_every + 1) * ck_every)
         t0 = time.perf_counter()
-        code, nrec = chunks.advance(state, dt, target - n)
+        code, nrec = advance(target - n)
         elapsed = time.perf_counter() - t0
         loop_s += elapsed
         # steps that take about WALL_CHUNK_S, growing at most 8-fold per chunk

@@ -1,0 +1,171 @@
+"""The crossing audit (``[audit] crossings = true``): every time two cable elements pass
+through each other during a run, counted and logged (issue #26; docs/results.md).
+
+The step loop itself is not changed: an audited run advances one step per call and, after
+each step, tests the candidate element pairs for a crossing over that step with the exact
+continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings` (the nodes move on
+straight lines over a step, as the central-difference update moves them). The candidates
+come from the hash-grid broad phase with a skin, rebuilt outside the step when a node has
+moved more than half the skin, in the hub's frame, since the last build (distances do not
+change in a rigidly turning frame, so the spin itself never forces a rebuild), or when a
+held level went free. Which elements take part:
+
+- only released material: an element with both ends held on the coil moves with the hub;
+- a pair closer than ``touch`` [m] when it enters the list (the star fold's stacked layers
+  start coincident, z = 0, without a layer gap, and leave the coil so) is left out until it is farther apart than the
+  skin at a rebuild: two coincident cables have no side of each other to cross from, and
+  layers that part slowly would otherwise cross back and forth at round-off.
+
+A crossing's time is the step's start plus its fraction of the step; its direction is the
+sign of the signed volume of the two elements' ends after it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from spinweb_fe.fe.crossing import (candidate_pairs, moved_since, pair_distances,
+                                    step_crossings)
+
+#: default broad-phase skin [m]
+SKIN = 0.05
+#: default distance [m] below which a pair entering the list is left out until it separates
+TOUCH = 1e-3
+#: crossings logged per step at most (the count has them all)
+LOG_PER_STEP = 64
+
+
+def held_nodes(model, state) -> np.ndarray:
+    """(n,) bool: nodes on the hub's coil now (levels not yet released)."""
+    coil, front = model.coil, state.coil.front
+    held = np.zeros(model.n_nodes, bool)
+    for k in range(len(coil.arm_ptr) - 1):
+        first = coil.arm_ptr[k] + front[k]
+        last = coil.arm_ptr[k + 1]
+        if first < last:
+            held[coil.level_nodes[coil.level_ptr[first]:coil.level_ptr[last]]] = True
+    return held
+
+
+class CrossingAudit:
+    """Counts and logs the crossings of a run's elements (see the module's text).
+
+    Attributes
+    ----------
+    count : int
+        Crossings so far.
+    log : dict of lists
+        ``time`` [s], ``element_a``, ``element_b``, ``direction`` (+1 / -1) of each crossing
+        (at most :data:`LOG_PER_STEP` per step).
+    rebuilds : int
+        Broad-phase builds so far.
+    """
+
+    name = "crossings"
+
+    def __init__(self, model, skin: float = SKIN, touch: float = TOUCH):
+        self.model = model
+        self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
+        self.skin, self.touch = float(skin), float(touch)
+        self.count, self.rebuilds = 0, 0
+        self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
+        self.pairs = np.zeros((0, 2), np.int64)
+        self.ignored = np.zeros(0, np.int64)
+        self.ref = None
+        self.fronts = None
+        self._codes = None
+        self._out = (np.zeros(LOG_PER_STEP), np.zeros(LOG_PER_STEP, np.int64),
+                     np.zeros(LOG_PER_STEP, np.int64), np.zeros(LOG_PER_STEP, np.int64))
+
+    def _code(self, pairs):
+        return pairs[:, 0] * np.int64(len(self.elem_nodes)) + pairs[:, 1]
+
+    def build(self, state):
+        """The candidate list at the state's positions (and the pairs left out)."""
+        pos = state.node_pos
+        held = held_nodes(self.model, state)
+        active = ~(held[self.elem_nodes[:, 0]] & held[self.elem_nodes[:, 1]])
+        pairs = candidate_pairs(pos, self.elem_nodes, active, self.skin)
+        self._active = active
+        dist = pair_distances(pairs, self.elem_nodes, pos)
+        code = self._code(pairs)
+        # a pair that enters the list touching is left out; one left out stays out until
+        # it is a skin apart (stacked layers drift and part slowly)
+        entering = ~np.isin(code, self._codes) if self._codes is not None else \
+            np.ones(len(code), bool)
+        self.ignored = np.union1d(np.intersect1d(self.ignored, code[dist <= self.skin]),
+                                  code[entering & (dist <= self.touch)])
+        self._codes = code
+        self.pairs = pairs[~np.isin(code, self.ignored)]
+        theta = float(state.hub.angle[0])
+        c, s = math.cos(theta), math.sin(theta)
+        self.ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
+                                    -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
+        self.fronts = state.coil.front.copy()
+        self.rebuilds += 1
+
+    def step(self, pos0, state, t0: float, dt: float):
+        """The crossings of the step that took the nodes from ``pos0`` to the state's
+        positions (starting at ``t0`` [s]); then a rebuild if the list went stale."""
+        out_t, out_e, out_f, out_s = self._out
+        theta = float(state.hub.angle[0])
+        c, s = math.cos(theta), math.sin(theta)
+        moved = moved_since(self.ref, state.node_pos, c, s)
+        pairs = self.pairs
+        if moved > self.skin:  # a step beyond the list's reach: a list as wide as the step
+            wide = candidate_pairs(pos0, self.elem_nodes, self._active, self.skin + moved)
+            pairs = wide[~np.isin(self._code(wide), self.ignored)]
+        n = step_crossings(pairs, self.elem_nodes, pos0, state.node_pos, out_t, out_e,
+                           out_f, out_s)
+        if n:
+            k = min(n, LOG_PER_STEP)
+            self.count += n
+            self.log["time"].extend((t0 + out_t[:k] * dt).tolist())
+            self.log["element_a"].extend(out_e[:k].tolist())
+            self.log["element_b"].extend(out_f[:k].tolist())
+            self.log["direction"].extend(out_s[:k].tolist())
+        if moved > 0.5 * self.skin or not np.array_equal(self.fronts, state.coil.front):
+            self.build(state)
+
+    def table(self) -> dict:
+        """The log as arrays (name -> (K,) array)."""
+        return {"time": np.asarray(self.log["time"], np.float64),
+                "element_a": np.asarray(self.log["element_a"], np.int64),
+                "element_b": np.asarray(self.log["element_b"], np.int64),
+                "direction": np.asarray(self.log["direction"], np.int64)}
+
+    def memory(self) -> dict:
+        return {"count": np.array([self.count], np.int64), **self.table(),
+                "ignored": self.ignored.copy()}
+
+    def restore(self, memory: dict) -> None:
+        self.count = int(memory["count"][0])
+        for k in self.log:
+            self.log[k] = list(np.asarray(memory[k]).tolist())
+        self.ignored = np.asarray(memory["ignored"], np.int64)
+
+
+#: units and meaning of the /crossings table's columns
+TABLE_UNITS = {"time": ("s", "time of the crossing"),
+               "element_a": ("1", "the first element (index into /mesh/elements)"),
+               "element_b": ("1", "the second element"),
+               "direction": ("1", "sign of the signed volume of the two elements' ends "
+                                  "after the crossing (+1 / -1)")}
+
+
+def write_table(h5, audit: CrossingAudit):
+    """The audit's /crossings group: the log's columns and the attributes ``count``,
+    ``skin`` [m], ``touch`` [m], ``rebuilds``."""
+    if "crossings" in h5:
+        del h5["crossings"]
+    g = h5.create_group("crossings")
+    for name, arr in audit.table().items():
+        ds = g.create_dataset(name, data=arr)
+        ds.attrs["units"], ds.attrs["description"] = TABLE_UNITS[name]
+    g.attrs["count"] = audit.count
+    g.attrs["skin"] = audit.skin
+    g.attrs["touch"] = audit.touch
+    g.attrs["rebuilds"] = audit.rebuilds
+    g.attrs["units"] = "skin, touch: m"
