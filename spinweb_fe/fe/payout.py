@@ -328,7 +328,7 @@ def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
     vd0, vd1, vd2 = _hub_velocity3(pose, x_d[0], x_d[1], x_d[2])
     level = s_old - s_f
     x, lo, hi = 0.0, 0.0, level  # the slip and its bracket: tension above, below
-    n0, cap, v_max, stretch = 0.0, level, 0.0, 0.0
+    n0, cap, v_max, stretch, mu = 0.0, level, 0.0, 0.0, 0.0
     for it in range(SLIP_ITERATIONS):
         if it > 0:
             x_d = _world(pose, device_point(coil, k, lev, s_old - x))
@@ -345,6 +345,8 @@ def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
                 slope += k_e * elems.rest_len[e] / (s_to - s_f)
                 out += k_e * (d - ell) / d * (u[0] * r[0] + u[1] * r[1] + u[2] * r[2])
                 if it == 0:  # how fast the taut line's material leaves D
+                    span = s_to - s_f
+                    mu += coil.test_half[q] * elems.rest_len[e] / (span * span)
                     v_away = ((vel[b, 0] - vd0) * u[0] + (vel[b, 1] - vd1) * u[1]
                               + (vel[b, 2] - vd2) * u[2]) / d
                     v_max = max(v_max, v_away)
@@ -358,6 +360,12 @@ def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
             # from D: a return mapping of many elements (a web's gathered level) would
             # otherwise jump a whole level in a step and hand the passing mass that speed
             cap = min(level, stretch + SLIP_SPEED * v_max * dt)
+            # and no faster than the line's momentum balance across D lets it: the material
+            # passing D at u carries away mu u^2 of the tension's excess over the force (mu
+            # [kg/m]: the mass that passes per metre of the arm's coordinate, as seen by the
+            # elements' line speeds)
+            if mu > 0.0:
+                cap = min(cap, dt * np.sqrt((n0 - force) / mu))
             hi = cap
             if cap <= 0.0:
                 break
