@@ -150,7 +150,7 @@ def test_results_hold_the_crossings_and_the_verdict_judges_them(tmp_path):
         assert f["history/crossings"].attrs["units"] == "1"
         g = f["crossings"]
         assert g.attrs["count"] == 0 and g["time"].attrs["units"] == "s"
-        assert g.attrs["skin"] == 0.05
+        assert g.attrs["skin"] == 0.5
         assert f["verdict/tangled"].attrs["passed"] == 1
     with h5py.File(tmp_path / "b" / "results.h5") as f:
         assert "crossings" not in f and "crossings" not in f["history"]

@@ -188,7 +188,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "crossings": F("bool", False, None, "", "count every crossing of two cable elements "
                        "(history crossings, table /crossings; the loop then runs a step per "
                        "call: docs/results.md)"),
-        "skin": F("float", 0.05, "pos", "m", "crossings: the broad phase's skin (rebuilt "
+        "skin": F("float", 0.5, "pos", "m", "crossings: the broad phase's skin (rebuilt "
                   "when a node has moved half of it in the hub's frame)"),
         "touch": F("float", 1e-3, "nonneg", "m", "crossings: pairs closer than this when "
                    "they enter the list (stacked layers) are left out until they separate"),

@@ -30,7 +30,7 @@ from spinweb_fe.fe.crossing import (candidate_pairs, moved_since, pair_distances
                                     step_crossings)
 
 #: default broad-phase skin [m]
-SKIN = 0.05
+SKIN = 0.5
 #: default distance [m] below which a pair entering the list is left out until it separates
 TOUCH = 1e-3
 #: crossings logged per step at most (the count has them all)
