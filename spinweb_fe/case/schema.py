@@ -187,7 +187,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "audit": {
         "crossings": F("bool", False, None, "", "count every crossing of two cable elements "
                        "(history crossings, table /crossings; the loop then runs a step per "
-                       "call: docs/results.md)"),
+                       "call) and check the linking numbers of the web's cells at the start, "
+                       "every frame and the end (/linking): docs/results.md"),
         "skin": F("float", 0.5, "pos", "m", "crossings: the broad phase's skin (rebuilt "
                   "when a node has moved half of it in the hub's frame)"),
         "touch": F("float", 1e-3, "nonneg", "m", "crossings: pairs closer than this when "

@@ -54,9 +54,32 @@ def _lines(path, h5) -> list:
         lines.append(f"max_tension: {np.max(h['max_tension']):.6g} N")
     if "frames" in h5:
         lines.append(f"frames: {h5['frames']['time'].shape[0]}")
+    lines += audit_lines(h5)
     lines += summary_lines(h5)
     if h and a.get("status") != "running":
         lines += verdict_lines(h5, h)
+    return lines
+
+
+def audit_lines(h5) -> list:
+    """The crossing audit (/crossings) and the linking check (/linking), when the file has
+    them."""
+    lines = []
+    if "crossings" in h5:
+        g = h5["crossings"]
+        t = g["time"][()]
+        first = f", the first at t = {t.min():.6g} s" if len(t) else ""
+        lines.append(f"crossings: {int(g.attrs['count'])}{first} (broad phase built "
+                     f"{int(g.attrs['rebuilds'])} times)")
+    if "linking" in h5:
+        g = h5["linking"]
+        t, changed = g["time"][()], int(g.attrs["changed_total"])
+        when = (f" (t = {t[0]:.6g} .. {t[-1]:.6g} s)" if len(t) else "")
+        first = (f", the first at t = {float(g.attrs['first_change_time']):.6g} s"
+                 if changed else "")
+        lines.append(f"linking: {int(g.attrs['loops'])} cells, {len(t)} checks{when}; "
+                     f"cell pairs linked {g['reference'].shape[0]} at the start, "
+                     f"{g['links'].shape[0]} at the end; {changed} changes{first}")
     return lines
 
 

@@ -145,6 +145,37 @@ def pair_crossings(a0, a1, b0, b1, c0, c1, d0, d1, times, signs):
     return found
 
 
+#: grid cells per axis of the hash grid's keys (2^21: three fit an int64)
+GRID_SPAN = 2097152
+
+
+@njit(cache=True)
+def grid_entries(lo, hi, active, cell, origin, count):
+    """(keys, owners, n): every ``active`` box (rows of ``lo``, ``hi``) in each cell of the
+    uniform grid of size ``cell`` from ``origin`` that it touches, as n (cell key, box)
+    entries (``count``: room for at least that many)."""
+    big = np.int64(GRID_SPAN)
+    keys = np.empty(count, np.int64)
+    owners = np.empty(count, np.int64)
+    n_ent = 0
+    for e in range(lo.shape[0]):
+        if not active[e]:
+            continue
+        i0 = np.int64((lo[e, 0] - origin[0]) / cell)
+        j0 = np.int64((lo[e, 1] - origin[1]) / cell)
+        k0 = np.int64((lo[e, 2] - origin[2]) / cell)
+        i1 = np.int64((hi[e, 0] - origin[0]) / cell)
+        j1 = np.int64((hi[e, 1] - origin[1]) / cell)
+        k1 = np.int64((hi[e, 2] - origin[2]) / cell)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    keys[n_ent] = (i * big + j) * big + k
+                    owners[n_ent] = e
+                    n_ent += 1
+    return keys, owners, n_ent
+
+
 @njit(cache=True)
 def candidate_pairs(pos, elem_nodes, active, skin):
     """(P, 2) int64 element pairs (e < f, no common node, both ``active``) whose boxes,
@@ -168,25 +199,7 @@ def candidate_pairs(pos, elem_nodes, active, skin):
             origin[k] = min(origin[k], lo[e, k])
     # every element into each cell its box touches (at most 2 per axis: the cell is at
     # least the box's size), as (cell key, element) entries sorted by key
-    n_ent = 0
-    keys = np.empty(8 * m, np.int64)
-    owners = np.empty(8 * m, np.int64)
-    big = np.int64(2097152)  # 2^21 cells per axis
-    for e in range(m):
-        if not active[e]:
-            continue
-        i0 = np.int64((lo[e, 0] - origin[0]) / cell)
-        j0 = np.int64((lo[e, 1] - origin[1]) / cell)
-        k0 = np.int64((lo[e, 2] - origin[2]) / cell)
-        i1 = np.int64((hi[e, 0] - origin[0]) / cell)
-        j1 = np.int64((hi[e, 1] - origin[1]) / cell)
-        k1 = np.int64((hi[e, 2] - origin[2]) / cell)
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    keys[n_ent] = (i * big + j) * big + k
-                    owners[n_ent] = e
-                    n_ent += 1
+    keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m)
     order = np.argsort(keys[:n_ent], kind="mergesort")
     out = np.empty((16, 2), np.int64)
     n_out = 0

@@ -28,6 +28,8 @@ from spinweb_fe.io.space import DiskGuard
 from spinweb_fe.record import verdict
 from spinweb_fe.record.crossings import CrossingAudit
 from spinweb_fe.record.crossings import write_table as write_crossings
+from spinweb_fe.record.linking import LinkingMonitor
+from spinweb_fe.record.linking import write_group as write_linking
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
 from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
@@ -191,6 +193,8 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     status = "failed"
     audit = case.audit
     crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings else None
+    linking = LinkingMonitor(model.mesh, state) if audit.crossings else None
+    recorders += [linking] if linking is not None else []
     try:
         writer.set_attrs(threads=threads)
         res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
@@ -215,6 +219,7 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
         guard.release()  # room for the last attributes and the close
         if crossings is not None:
             _crossing_table(writer, crossings)
+            _linking_group(writer, linking)
         _judge(writer, case, model, state, status)
         _finish(writer, steps=int(state.step[0]), status=status)
     return res
@@ -230,6 +235,20 @@ def _crossing_table(writer, crossings):
                  crossings.rebuilds)
     except Exception as exc:  # noqa: BLE001 - the result stays; the table is missing
         log.error("could not write the crossings: %s", exc)
+
+
+def _linking_group(writer, linking):
+    """The linking check's /linking group into results.h5 (a failure is reported)."""
+    try:
+        writer.drain()
+        write_linking(writer.h5, linking)
+        writer.h5.flush()
+        s = linking.summary()
+        log.info("linking: %d cell pairs linked at the end, %d changes of a linking number%s",
+                 s["linked"], s["changed_total"], "" if not s["changed_total"] else
+                 f" (the first at t = {s['first_change_time']:.6g} s)")
+    except Exception as exc:  # noqa: BLE001 - the result stays; the group is missing
+        log.error("could not write the linking check: %s", exc)
 
 
 def _judge(writer, case, model, state, status):
