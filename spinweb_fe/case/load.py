@@ -63,6 +63,7 @@ class Case:
     environment: Any = None
     verdict: Any = None
     audit: Any = None
+    contact: Any = None
 
     @property
     def scene(self) -> str:

@@ -184,6 +184,18 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "crossings": F("int", VERDICT["crossings"], "nonneg", "", "tangled: more crossings "
                        "of cable elements than this (needs audit.crossings)"),
     },
+    "contact": {
+        "cables": F("bool", False, None, "", "cable-cable contact: elements that share no "
+                    "node repel closer than twice cable_radius (a penalty as stiff as the "
+                    "step allows; docs/solver.md); runs the crossing audit's list, one step "
+                    "per call"),
+        "cable_radius": F("float", None, "pos", "m", "cables: the contact radius (default: "
+                          "the cable's own, sqrt(A / pi)); about 1.5 v dt for cables "
+                          "closing at v"),
+        "stiffness": F("float", 0.25, "pos", "", "cables: the penalty k = stiffness m / dt^2 "
+                       "(m the pair's effective mass; 0.25: the contact spring's critical "
+                       "step is 4 dt)"),
+    },
     "audit": {
         "crossings": F("bool", False, None, "", "count every crossing of two cable elements "
                        "(history crossings, table /crossings; the loop then runs a step per "

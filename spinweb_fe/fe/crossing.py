@@ -254,7 +254,7 @@ def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
         e, f = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
-        if _apart(pos0, pos1, a, b, c, d):
+        if apart(pos0, pos1, a, b, c, d):
             continue
         k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
                            pos0[d], pos1[d], times, signs)
@@ -269,7 +269,7 @@ def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
 
 
 @njit(inline="always")
-def _apart(pos0, pos1, a, b, c, d):
+def apart(pos0, pos1, a, b, c, d):
     """True when the boxes that elements ab and cd sweep over the step are disjoint (they
     cannot meet: the narrow phase is skipped)."""
     for k in range(3):
@@ -283,34 +283,32 @@ def _apart(pos0, pos1, a, b, c, d):
 
 
 @njit(cache=True)
-def segment_distance(p, q, r, s):
-    """The least distance [m] between the segments pq and rs (closest points clamped to
-    both segments; parallel segments handled)."""
-    d1 = q - p
-    d2 = s - r
-    w = p - r
+def closest_points(p0, p1, q0, q1):
+    """(s, t, distance): the parameters of the closest points of segments p0p1 and q0q1
+    (clamped to both segments; parallel segments handled) and their distance [m]."""
+    d1 = p1 - p0
+    d2 = q1 - q0
+    w = p0 - q0
     a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
     e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
     f = d2[0] * w[0] + d2[1] * w[1] + d2[2] * w[2]
-    if a <= 0.0 and e <= 0.0:
-        return np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    if a <= 0.0:
-        sc, tc = 0.0, min(max(f / e, 0.0), 1.0)
-    else:
-        c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
-        if e <= 0.0:
-            sc, tc = min(max(-c / a, 0.0), 1.0), 0.0
-        else:
-            b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
-            den = a * e - b * b
-            sc = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
-            tc = (b * sc + f) / e
-            if tc < 0.0:
-                tc, sc = 0.0, min(max(-c / a, 0.0), 1.0)
-            elif tc > 1.0:
-                tc, sc = 1.0, min(max((b - c) / a, 0.0), 1.0)
-    x = w + sc * d1 - tc * d2
-    return np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
+    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+    den = a * e - b * b
+    s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
+    t = (b * s + f) / e
+    if t < 0.0:
+        t, s = 0.0, min(max(-c / a, 0.0), 1.0)
+    elif t > 1.0:
+        t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
+    x = w + s * d1 - t * d2
+    return s, t, np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+
+
+@njit(cache=True)
+def segment_distance(p, q, r, s):
+    """The least distance [m] between the segments pq and rs."""
+    return closest_points(p, q, r, s)[2]
 
 
 @njit(cache=True)

@@ -79,6 +79,13 @@ ENERGY = (
     Term("gravity_gradient_work", -1, "J", "gravity gradient: work of the tidal field on "
                                            "nodes and hub",
          present=lambda model: model.env.n > 0.0),
+    Term("cable_contact_energy", 1, "J", "cable-cable contact (contact.cables): energy "
+                                         "stored in its penalty springs now",
+         step=False, present=lambda model: False),
+    Term("cable_contact_dissipation", 1, "J", "cable-cable contact (contact.cables): kinetic "
+                                              "energy its impulses took from pairs that "
+                                              "would have passed through each other",
+         step=False, present=lambda model: False),
 )
 STEP_TERMS = tuple(t for t in ENERGY if t.step)
 

@@ -72,6 +72,7 @@ class CrossingAudit:
         self.count, self.rebuilds = 0, 0
         self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
         self.pairs = np.zeros((0, 2), np.int64)
+        self.pair_codes, self.pair_dist = np.zeros(0, np.int64), np.zeros(0)
         self.ignored = np.zeros(0, np.int64)
         self.ref = None
         self.fronts = None
@@ -98,7 +99,9 @@ class CrossingAudit:
         self.ignored = np.union1d(np.intersect1d(self.ignored, code[dist <= self.skin]),
                                   code[entering & (dist <= self.touch)])
         self._codes = code
-        self.pairs = pairs[~np.isin(code, self.ignored)]
+        kept = ~np.isin(code, self.ignored)
+        self.pairs = pairs[kept]
+        self.pair_codes, self.pair_dist = code[kept], dist[kept]
         theta = float(state.hub.angle[0])
         c, s = math.cos(theta), math.sin(theta)
         self.ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],

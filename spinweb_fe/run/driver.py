@@ -20,6 +20,7 @@ import numpy as np
 
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
+from spinweb_fe.fe.cable_contact import CableContact, cable_radius
 from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
                                       write_checkpoint)
 from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
@@ -191,15 +192,18 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
                         checkpoint_dt)
     status = "failed"
-    audit = case.audit
-    crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings else None
+    audit, touching = case.audit, case.contact.cables
+    crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings or touching \
+        else None
+    contact = CableContact(model, cable_radius(case, model), case.contact.stiffness) \
+        if touching else None
     linking = LinkingMonitor(model.mesh, state) if audit.crossings else None
     recorders += [linking] if linking is not None else []
     try:
         writer.set_attrs(threads=threads)
         res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
                        resume=None if resume is None else resume.memory, threads=threads,
-                       crossings=crossings)
+                       crossings=crossings, contact=contact)
         status = res.status
         if res.status != "completed":
             status = f"{res.status} at t = {float(state.time[0]):.6g} s"
@@ -218,18 +222,23 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
         bar.end(status)  # the progress line ends even when the loop raised
         guard.release()  # room for the last attributes and the close
         if crossings is not None:
-            _crossing_table(writer, crossings)
+            _crossing_table(writer, crossings, contact)
+        if linking is not None:
             _linking_group(writer, linking)
         _judge(writer, case, model, state, status)
         _finish(writer, steps=int(state.step[0]), status=status)
     return res
 
 
-def _crossing_table(writer, crossings):
-    """The crossing audit's /crossings table into results.h5 (a failure is reported)."""
+def _crossing_table(writer, crossings, contact=None):
+    """The crossing audit's /crossings table into results.h5, with the cable contact's radius
+    and deepest penetration [m] as attributes when it ran (a failure is reported)."""
     try:
         writer.drain()
         write_crossings(writer.h5, crossings)
+        if contact is not None:
+            writer.h5["crossings"].attrs["contact_radius"] = contact.radius
+            writer.h5["crossings"].attrs["deepest_penetration"] = contact.deepest_run
         writer.h5.flush()
         log.info("crossings: %d (broad phase built %d times)", crossings.count,
                  crossings.rebuilds)

@@ -186,7 +186,7 @@ class _Chunks:
 
 def simulate(model: Model, control: Control, state: State, dt: float, schedule: Schedule,
              recorders=(), *, resume=None, stop=None, threads=None,
-             energy_limit=ENERGY_LIMIT, crossings=None) -> RunResult:
+             energy_limit=ENERGY_LIMIT, crossings=None, contact=None) -> RunResult:
     """Integrate from ``state`` to ``schedule.t_end``; Python acts only at event boundaries.
 
     Parameters
@@ -214,6 +214,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     crossings : spinweb_fe.record.crossings.CrossingAudit or None
         Count the crossings of elements: the loop then runs one step per call and the audit
         tests each step (history column ``crossings``, the running count).
+    contact : spinweb_fe.fe.cable_contact.CableContact or None
+        Cable-cable contact on the audit's candidate pairs (needs ``crossings``): its forces
+        at x_n join the step's kick; history column ``cable_contact_energy``.
 
     Returns
     -------
@@ -249,14 +252,23 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     if crossings is not None:
         crossings.build(state)
 
+    def push(kick_nodes):
+        if crossings.pair_codes is not contact.codes:  # the list was rebuilt
+            contact.sync(crossings.pair_codes, crossings.pair_dist)
+        contact.push(crossings.pairs, state, dt, kick_nodes)
+
     def advance(nsteps):
         if crossings is None:
             return chunks.advance(state, dt, nsteps)
         for _ in range(nsteps):  # one step per call, each tested for crossings
             pos0, t0 = state.node_pos.copy(), float(state.time[0])
+            if contact is not None:
+                push(True)
             code, nrec = chunks.advance(state, dt, 1)
             if nrec or code:
                 collect(code, nrec)
+            if contact is not None:
+                contact.resolve(crossings.pairs, pos0, state, dt)
             crossings.step(pos0, state, t0, dt)
         return 0, 0
 
@@ -267,6 +279,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         rows = chunks.rows(nrec)
         if crossings is not None:
             rows["crossings"] = np.full(nrec, float(crossings.count))
+        if contact is not None:
+            rows["cable_contact_energy"] = np.full(nrec, contact.energy)
+            rows["cable_contact_dissipation"] = np.full(nrec, contact.dissipated)
         if nrec:
             for r in recorders:
                 r.rows(rows)
@@ -298,6 +313,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
                 r.frame(frame)
             frames += 1
         if n == n_total:  # the last row: record at t_end on a copy, the state stays at t_end
+            if contact is not None:  # its energy at t_end (no kick: the state stays)
+                push(False)
             t0 = time.perf_counter()
             code, nrec = chunks.advance(state.copy(), dt, 1)
             loop_s += time.perf_counter() - t0

@@ -1,0 +1,262 @@
+"""Cable-cable contact (``[contact] cables = true``, issue #26): two elements that share no
+node repel where they come closer than twice the cable radius r.
+
+A penalty force between the two closest points p (on element ab, at a + s (b - a)) and q
+(on cd, at c + t (d - c)) of the pair, along n = (p - q) / |p - q|:
+
+    F = k delta n,   delta = 2 r - |p - q| > 0,   k = kappa m / dt^2,
+
+on the first element's ends (1 - s) F and s F, on the second's -(1 - t) F and -t F. The
+forces are equal and opposite and act along the line of the two points, so the pair
+changes neither the linear nor the angular momentum (to round-off). The stiffness is the
+stiffest the time step carries: m is the pair's two sides in series, each side the
+lighter of its element's two nodes (1 / m = max(1/m_a, 1/m_b) + max(1/m_c, 1/m_d): at
+least the effective inverse mass wherever the elements touch, so that the contact spring's
+critical step is at least 4 dt with kappa = 0.25: the step does not change; and one k per
+pair, so that the force is the gradient of the stored energy). The penalty is a potential: the energy
+it stores, sum 1/2 k delta^2, is booked in the balance as ``cable_contact_energy``; the
+central-difference update integrates it as it does the cables (energy to O(dt^2)).
+
+What a penalty cannot do: stop two elements that close faster than the spring can push
+back within the gap. A pair closing at v penetrates about v / omega, omega = sqrt(k / m_c)
+with m_c its effective mass where it touches (omega dt = 0.35 at mid-element, 0.5 at a
+node, with kappa = 0.25), so the radius must be about 1.5 v dt for elements closing at v
+(tests/test_cable_contact.py: 200 m/s at dt = 1e-4 s passes through at r = 2.5 cm, not at
+3 cm): 1.4 mm at 20 m/s and 1.4 cm at 200 m/s on the paper web's step (4.6e-5 s). The
+crossing audit, which runs with the contact, counts the crossings that still happen.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from spinweb_fe.fe.crossing import apart, closest_points, pair_crossings
+
+#: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
+KAPPA = 0.25
+#: the fail-safe's impulses leave a crossing pair this share of the radius apart
+MARGIN = 0.1
+#: passes of the fail-safe over the candidate pairs per step at most
+ROUNDS = 20
+
+
+@njit(inline="always")
+def _box_gap(pos, a, b, c, d):
+    """The largest gap [m] along an axis between the boxes of elements ab and cd (a lower
+    bound of their distance)."""
+    gap = 0.0
+    for k in range(3):
+        g = max(min(pos[c, k], pos[d, k]) - max(pos[a, k], pos[b, k]),
+                min(pos[a, k], pos[b, k]) - max(pos[c, k], pos[d, k]))
+        gap = max(gap, g)
+    return gap
+
+
+@njit(cache=True)
+def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share):
+    """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
+    which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
+    radius, or less for a pair that entered the list closer: it is raised to the largest
+    distance the pair has had, up to twice the radius, here). Pairs with a node that does
+    not move freely (inv_mass 0: held on the hub) are left out. A node in contact with
+    several elements at once (a column of stacked layers) shares the step's stiffness
+    among them: each pair's k is divided by the most contacts one of its nodes has now
+    (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
+    step. Returns (stored energy [J], pairs in contact, deepest penetration [m])."""
+    force[:] = 0.0
+    share[:] = 0
+    reach_max = 2.0 * radius
+    energy, count, deepest = 0.0, 0, 0.0
+    for sweep in range(2):  # count the contacts per node, then push
+        for p in range(pairs.shape[0]):
+            e, g = pairs[p, 0], pairs[p, 1]
+            a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+            c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+            if inv_mass[a] == 0.0 or inv_mass[b] == 0.0 or inv_mass[c] == 0.0 \
+                    or inv_mass[d] == 0.0:
+                continue
+            if _box_gap(pos, a, b, c, d) >= reach_max:  # apart by the boxes alone
+                if sweep == 1:
+                    reach[p] = reach_max
+                continue
+            s, t, dist = closest_points(pos[a], pos[b], pos[c], pos[d])
+            if dist >= reach[p] or dist <= 0.0:
+                if sweep == 1:
+                    reach[p] = min(max(reach[p], dist), reach_max)
+                continue
+            if sweep == 0:
+                share[a] += 1
+                share[b] += 1
+                share[c] += 1
+                share[d] += 1
+                continue
+            delta = reach[p] - dist
+            # the pair's stiffness from its nodes' masses, not from where it touches: one
+            # k per pair (while its nodes' contacts stay) keeps the force the gradient of
+            # 1/2 k delta^2
+            im = max(inv_mass[a], inv_mass[b]) + max(inv_mass[c], inv_mass[d])
+            many = max(max(share[a], share[b]), max(share[c], share[d]))
+            k = kappa / (im * dt * dt * many)
+            fmag = k * delta / dist
+            for j in range(3):
+                pj = pos[a, j] + s * (pos[b, j] - pos[a, j])
+                qj = pos[c, j] + t * (pos[d, j] - pos[c, j])
+                fj = fmag * (pj - qj)
+                force[a, j] += (1.0 - s) * fj
+                force[b, j] += s * fj
+                force[c, j] -= (1.0 - t) * fj
+                force[d, j] -= t * fj
+            energy += 0.5 * k * delta * delta
+            count += 1
+            deepest = max(deepest, delta)
+    return energy, count, deepest
+
+
+@njit(cache=True)
+def kick(vel, force, inv_mass, dt):
+    """v += dt f / m for every node (the contact's share of the next step's kick)."""
+    for i in range(vel.shape[0]):
+        h = dt * inv_mass[i]
+        vel[i, 0] += h * force[i, 0]
+        vel[i, 1] += h * force[i, 1]
+        vel[i, 2] += h * force[i, 2]
+
+
+class CableContact:
+    """The contact of a run: its radius [m] and stiffness factor, the force buffer, and
+    what the last evaluation found (``energy`` [J], ``count``, ``deepest`` [m])."""
+
+    def __init__(self, model, radius: float, kappa: float = KAPPA):
+        self.radius, self.kappa = float(radius), float(kappa)
+        self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
+        self.force = np.zeros((model.n_nodes, 3))
+        self.share = np.zeros(model.n_nodes, np.int64)
+        self.energy, self.count, self.deepest = 0.0, 0, 0.0
+        self.deepest_run = 0.0
+        self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
+        self.dissipated, self.impulses, self.unresolved = 0.0, 0, 0
+
+    def sync(self, codes, dist):
+        """A new candidate list (its pairs' sorted ``codes`` and distances at the build
+        [m]): a pair that was listed keeps its contact distance, a new one gets twice the
+        radius or, if closer, its distance now (an overlap at entry is kept, not pushed
+        apart: stacked layers closer than the radius stay as they are until they part)."""
+        reach = np.minimum(2.0 * self.radius, dist)
+        if len(self.codes):
+            i = np.searchsorted(self.codes, codes)
+            i = np.minimum(i, len(self.codes) - 1)
+            same = self.codes[i] == codes
+            reach[same] = self.reach[i[same]]
+        self.codes, self.reach = codes, reach
+
+    def push(self, pairs, state, dt: float, kick_nodes: bool = True):
+        """The penalty forces at the state's positions x_n; with ``kick_nodes``, v_{n-1/2}
+        += dt f / m (the step then kicks with the cables' forces on top: the contact is
+        part of f_n)."""
+        self.energy, self.count, self.deepest = contact_forces(
+            pairs, self.elem_nodes, state.node_pos, state.node_inv_mass, self.reach,
+            self.radius, self.kappa, dt, self.force, self.share)
+        self.deepest_run = max(self.deepest_run, self.deepest)
+        if kick_nodes and self.count:
+            kick(state.node_vel, self.force, state.node_inv_mass, dt)
+
+    def resolve(self, pairs, pos0, state, dt: float):
+        """The step just taken from ``pos0``, made free of crossings by impulses
+        (:func:`resolve_crossings`; the state's positions and half-step velocities change);
+        the kinetic energy the impulses took is added to ``dissipated`` [J]."""
+        taken, n, left = resolve_crossings(pairs, self.elem_nodes, pos0, state.node_pos,
+                                           state.node_vel, state.node_inv_mass, dt,
+                                           MARGIN * self.radius, ROUNDS)
+        self.dissipated += taken
+        self.impulses += n
+        self.unresolved += left
+
+
+def cable_radius(case, model) -> float:
+    """The contact radius of a case [m]: contact.cable_radius, else the cable's own
+    sqrt(A / pi) (A from the largest element's E A and the cable's modulus)."""
+    given = case.contact.cable_radius
+    if given is not None:
+        return float(given)
+    area = float(np.max(model.elements.ea)) / case.cable.youngs_modulus
+    return float(np.sqrt(area / np.pi))
+
+
+@njit(cache=True)
+def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds):
+    """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
+    every candidate pair that would pass through each other over the step (from ``pos0``
+    to ``pos1``, fe.crossing's exact test) gets an impulse along the normal of the two
+    elements at the crossing, equal and opposite at their crossing points, that changes
+    their relative normal velocity so that they end the step ``margin`` [m] apart on the
+    side they came from; the nodes' half-step velocities and end positions are updated
+    (x_{n+1} = x_n + dt v_{n+1/2}). A node that does not move freely (inv_mass 0: held on
+    or tied to the hub) takes no share (its side is infinitely heavy; the hub does not
+    yet feel the reaction). The first pass tests every pair, later passes (at most
+    ``rounds`` in all) the pairs with a node an impulse moved. Returns (kinetic energy the
+    impulses took [J], impulses, crossings left)."""
+    times = np.empty(3)
+    signs = np.empty(3, np.int64)
+    taken, impulses, left = 0.0, 0, 0
+    moved = np.ones(pos0.shape[0], np.bool_)
+    for _ in range(rounds):
+        now = np.zeros(pos0.shape[0], np.bool_)
+        left = 0
+        for p in range(pairs.shape[0]):
+            e, g = pairs[p, 0], pairs[p, 1]
+            a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+            c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+            if not (moved[a] or moved[b] or moved[c] or moved[d]) \
+                    or apart(pos0, pos1, a, b, c, d):
+                continue
+            if pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+                              pos1[d], times, signs) == 0:
+                continue
+            left += 1
+            tau = times[0]
+            xa = pos0[a] + tau * (pos1[a] - pos0[a])
+            xb = pos0[b] + tau * (pos1[b] - pos0[b])
+            xc = pos0[c] + tau * (pos1[c] - pos0[c])
+            xd = pos0[d] + tau * (pos1[d] - pos0[d])
+            s, t, _ = closest_points(xa, xb, xc, xd)
+            w = (1.0 - s) ** 2 * inv_mass[a] + s * s * inv_mass[b] \
+                + (1.0 - t) ** 2 * inv_mass[c] + t * t * inv_mass[d]
+            if w == 0.0:  # nothing free to push
+                continue
+            # the side the first element came from: the crossing points at the step's start
+            gap0 = (1.0 - s) * pos0[a] + s * pos0[b] - (1.0 - t) * pos0[c] - t * pos0[d]
+            d1, d2 = xb - xa, xd - xc
+            n = np.cross(d1, d2)
+            size = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+            scale = np.sqrt((d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2)
+                            * (d2[0] ** 2 + d2[1] ** 2 + d2[2] ** 2))
+            if size <= 1e-9 * scale:  # (nearly) parallel: the normal is the start's offset
+                u = d1 / np.sqrt(d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2)
+                n = gap0 - (gap0[0] * u[0] + gap0[1] * u[1] + gap0[2] * u[2]) * u
+                size = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+                if size == 0.0:
+                    continue
+            n /= size
+            dist0 = gap0[0] * n[0] + gap0[1] * n[1] + gap0[2] * n[2]
+            side = 1.0 if dist0 >= 0.0 else -1.0
+            vrel = (1.0 - s) * vel[a] + s * vel[b] - (1.0 - t) * vel[c] - t * vel[d]
+            vn = vrel[0] * n[0] + vrel[1] * n[1] + vrel[2] * n[2]
+            j = ((side * margin - dist0) / dt - vn) / w
+            ke0, ke1 = 0.0, 0.0
+            for i, f in ((a, 1.0 - s), (b, s), (c, -(1.0 - t)), (d, -t)):
+                if inv_mass[i] == 0.0:
+                    continue
+                ke0 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
+                for k in range(3):
+                    vel[i, k] += f * j * inv_mass[i] * n[k]
+                    pos1[i, k] = pos0[i, k] + dt * vel[i, k]
+                ke1 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
+                now[i] = True
+            taken += ke0 - ke1
+            impulses += 1
+        moved = now
+        if left == 0:
+            break
+    return taken, impulses, left
+
