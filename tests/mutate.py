@@ -59,6 +59,10 @@ PAYOUT_TESTS = ("tests/test_payout.py",)
 VERDICT_TESTS = ("tests/test_verdict.py",)
 SWEEP_TESTS = ("tests/test_montecarlo.py",)
 DESIGN_TESTS = ("tests/test_design.py",)
+CONTACT_TESTS = ("tests/test_cable_contact.py",)
+AUDIT_TESTS = ("tests/test_crossing_audit.py",)
+LINK_TESTS = ("tests/test_linking.py", "tests/test_linking_monitor.py")
+LAYER_TESTS = ("tests/test_layer_gap.py",)
 
 
 @dataclass(frozen=True)
@@ -358,6 +362,32 @@ MUTANTS = (
            "        if not v <= lim:\n            failed.append(b)",
            "        if not v <= 10.0 * lim:\n            failed.append(b)",
            "the design's bounds checked ten times too loosely", DESIGN_TESTS),
+    # ---- crossings, contact, linking, stacked layers (issue #26)
+    Mutant("contact_force_half_on_first", "spinweb_fe/fe/cable_contact.py",
+           "                force[b, j] += s * fj",
+           "                force[b, j] += 0.5 * s * fj",
+           "the contact's force on the first element's second node halved", CONTACT_TESTS),
+    Mutant("contact_failsafe_wrong_side", "spinweb_fe/fe/cable_contact.py",
+           "side = 1.0 if dist0 >= 0.0 else -1.0",
+           "side = -1.0 if dist0 >= 0.0 else 1.0",
+           "the fail-safe pushes a pair out on the side it was going to", CONTACT_TESTS),
+    Mutant("audit_world_frame_skin", "spinweb_fe/record/crossings.py",
+           "moved = moved_since(self.ref, state.node_pos, c, s)",
+           "moved = moved_since(self.ref, state.node_pos, 1.0, 0.0)",
+           "the audit's skin measured in the world frame: the spin forces rebuilds",
+           AUDIT_TESTS),
+    Mutant("audit_touching_counted", "spinweb_fe/record/crossings.py",
+           "code[entering & (dist <= self.touch)])",
+           "code[entering & (dist < 0.0)])",
+           "pairs that enter the list touching (stacked layers) are tested as any other",
+           AUDIT_TESTS),
+    Mutant("linking_sign_flipped", "spinweb_fe/record/linking.py",
+           "return 2.0 * math.atan2(x1 * y2 + x2 * y1, x1 * x2 - y1 * y2)",
+           "return -2.0 * math.atan2(x1 * y2 + x2 * y1, x1 * x2 - y1 * y2)",
+           "linking numbers with the wrong sign", LINK_TESTS),
+    Mutant("layer_gap_half_spacing", "meshgen/layers.py",
+           "KAPPA = 1.1", "KAPPA = 0.5",
+           "the coil's passes rise half of what keeps them apart", LAYER_TESTS),
 )
 
 
