@@ -196,7 +196,8 @@ def test_the_layered_paper_web_unfolds_without_a_crossing(tmp_path):
     """The paper's feedback web folded with a 5 mm layer gap, 0.1 s: without contact its
     layers pass through each other 296 times; with the contact (the cable's own radius,
     1.8 mm) none, the energy balance closing with the contact's terms within 1e-3 and
-    the angular momentum audit as without (docs/solver.md)."""
+    the angular momentum audit as without (docs/solver.md); two threads give the same
+    bits."""
     import h5py
 
     from pathlib import Path
@@ -206,13 +207,18 @@ def test_the_layered_paper_web_unfolds_without_a_crossing(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     base = ["fold.layer_gap=0.005", "time.end=0.1", "output.frame_dt=0"]
-    counts = {}
-    for name, extra in (("audit", ["audit.crossings=true"]), ("contact", ["contact.cables=true"])):
+    counts, hist = {}, {}
+    runs = (("audit", ["audit.crossings=true"], 1), ("contact", ["contact.cables=true"], 1),
+            ("contact_2", ["contact.cables=true"], 2))
+    for name, extra, threads in runs:
         run_case(case_mod.load(root / "cases" / "paper_feedback_web.toml", base + extra),
-                 tmp_path / name, progress=False, threads=1)
+                 tmp_path / name, progress=False, threads=threads)
         with h5py.File(tmp_path / name / "results.h5") as f:
             counts[name] = int(f["crossings"].attrs["count"])
+            hist[name] = {k: f["history"][k][:] for k in f["history"]}
             assert f["verdict/energy"].attrs["value"] < 1e-3
             assert f["verdict/momentum"].attrs["passed"] == 1
     assert counts["audit"] > 100
-    assert counts["contact"] == 0
+    assert counts["contact"] == counts["contact_2"] == 0
+    for key, value in hist["contact"].items():  # two threads: the same bits
+        assert np.array_equal(value, hist["contact_2"][key]), key
