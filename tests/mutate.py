@@ -364,8 +364,8 @@ MUTANTS = (
            "the design's bounds checked ten times too loosely", DESIGN_TESTS),
     # ---- crossings, contact, linking, stacked layers (issue #26)
     Mutant("contact_force_half_on_first", "spinweb_fe/fe/cable_contact.py",
-           "                force[b, j] += s * fj",
-           "                force[b, j] += 0.5 * s * fj",
+           "            force[b, j] += s * fj",
+           "            force[b, j] += 0.5 * s * fj",
            "the contact's force on the first element's second node halved", CONTACT_TESTS),
     Mutant("contact_failsafe_wrong_side", "spinweb_fe/fe/cable_contact.py",
            "side = 1.0 if dist0 >= 0.0 else -1.0",

@@ -13,8 +13,8 @@ stiffest the time step carries: m is the pair's two sides in series, each side t
 lighter of its element's two nodes (1 / m = max(1/m_a, 1/m_b) + max(1/m_c, 1/m_d): at
 least the effective inverse mass wherever the elements touch, so that the contact spring's
 critical step is at least 4 dt with kappa = 0.25: the step does not change; and one k per
-pair, so that the force is the gradient of the stored energy). The penalty is a potential: the energy
-it stores, sum 1/2 k delta^2, is booked in the balance as ``cable_contact_energy``; the
+pair, so that the force is the gradient of the stored energy). The penalty is a potential:
+the energy it stores, sum 1/2 k delta^2, is booked in the balance as ``cable_contact_energy``; the
 central-difference update integrates it as it does the cables (energy to O(dt^2)).
 
 What a penalty cannot do: stop two elements that close faster than the spring can push
@@ -68,48 +68,57 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     share[:] = 0
     reach_max = 2.0 * radius
     energy, count, deepest = 0.0, 0, 0.0
-    for sweep in range(2):  # count the contacts per node, then push
-        for p in range(pairs.shape[0]):
-            e, g = pairs[p, 0], pairs[p, 1]
-            a, b = elem_nodes[e, 0], elem_nodes[e, 1]
-            c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-            if inv_mass[a] == 0.0 or inv_mass[b] == 0.0 or inv_mass[c] == 0.0 \
-                    or inv_mass[d] == 0.0:
-                continue
-            if _box_gap(pos, a, b, c, d) >= reach_max:  # apart by the boxes alone
-                if sweep == 1:
-                    reach[p] = reach_max
-                continue
-            s, t, dist = closest_points(pos[a], pos[b], pos[c], pos[d])
-            if dist >= reach[p] or dist <= 0.0:
-                if sweep == 1:
-                    reach[p] = min(max(reach[p], dist), reach_max)
-                continue
-            if sweep == 0:
-                share[a] += 1
-                share[b] += 1
-                share[c] += 1
-                share[d] += 1
-                continue
-            delta = reach[p] - dist
-            # the pair's stiffness from its nodes' masses, not from where it touches: one
-            # k per pair (while its nodes' contacts stay) keeps the force the gradient of
-            # 1/2 k delta^2
-            im = max(inv_mass[a], inv_mass[b]) + max(inv_mass[c], inv_mass[d])
-            many = max(max(share[a], share[b]), max(share[c], share[d]))
-            k = kappa / (im * dt * dt * many)
-            fmag = k * delta / dist
-            for j in range(3):
-                pj = pos[a, j] + s * (pos[b, j] - pos[a, j])
-                qj = pos[c, j] + t * (pos[d, j] - pos[c, j])
-                fj = fmag * (pj - qj)
-                force[a, j] += (1.0 - s) * fj
-                force[b, j] += s * fj
-                force[c, j] -= (1.0 - t) * fj
-                force[d, j] -= t * fj
-            energy += 0.5 * k * delta * delta
-            count += 1
-            deepest = max(deepest, delta)
+    # first the pairs' closest points (NaN: a node not free; infinity: apart by their
+    # boxes alone) and the contacts per node, then the push
+    n_pairs = pairs.shape[0]
+    ps, pt, pd = np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs)
+    for p in range(n_pairs):
+        e, g = pairs[p, 0], pairs[p, 1]
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+        if inv_mass[a] == 0.0 or inv_mass[b] == 0.0 or inv_mass[c] == 0.0 \
+                or inv_mass[d] == 0.0:
+            pd[p] = np.nan
+            continue
+        if _box_gap(pos, a, b, c, d) >= reach_max:
+            pd[p] = np.inf
+            continue
+        ps[p], pt[p], pd[p] = closest_points(pos[a], pos[b], pos[c], pos[d])
+        if 0.0 < pd[p] < reach[p]:
+            share[a] += 1
+            share[b] += 1
+            share[c] += 1
+            share[d] += 1
+    for p in range(n_pairs):
+        dist = pd[p]
+        if np.isnan(dist):
+            continue
+        if dist >= reach[p] or dist <= 0.0:  # apart: the contact distance rises with it
+            reach[p] = min(max(reach[p], dist), reach_max)
+            continue
+        e, g = pairs[p, 0], pairs[p, 1]
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+        s, t = ps[p], pt[p]
+        delta = reach[p] - dist
+        # the pair's stiffness from its nodes' masses, not from where it touches: one
+        # k per pair (while its nodes' contacts stay) keeps the force the gradient of
+        # 1/2 k delta^2
+        im = max(inv_mass[a], inv_mass[b]) + max(inv_mass[c], inv_mass[d])
+        many = max(max(share[a], share[b]), max(share[c], share[d]))
+        k = kappa / (im * dt * dt * many)
+        fmag = k * delta / dist
+        for j in range(3):
+            pj = pos[a, j] + s * (pos[b, j] - pos[a, j])
+            qj = pos[c, j] + t * (pos[d, j] - pos[c, j])
+            fj = fmag * (pj - qj)
+            force[a, j] += (1.0 - s) * fj
+            force[b, j] += s * fj
+            force[c, j] -= (1.0 - t) * fj
+            force[d, j] -= t * fj
+        energy += 0.5 * k * delta * delta
+        count += 1
+        deepest = max(deepest, delta)
     return energy, count, deepest
 
 

@@ -12,9 +12,10 @@ held level went free. Which elements take part:
 
 - only released material: an element with both ends held on the coil moves with the hub;
 - a pair closer than ``touch`` [m] when it enters the list (the star fold's stacked layers
-  start coincident, z = 0, without a layer gap, and leave the coil so) is left out until it is farther apart than the
-  skin at a rebuild: two coincident cables have no side of each other to cross from, and
-  layers that part slowly would otherwise cross back and forth at round-off.
+  start coincident, z = 0, without a layer gap, and leave the coil so) is left out until
+  it is farther apart than the skin at a rebuild: two coincident cables have no side of
+  each other to cross from, and layers that part slowly would otherwise cross back and
+  forth at round-off.
 
 A crossing's time is the step's start plus its fraction of the step; its direction is the
 sign of the signed volume of the two elements' ends after it.
