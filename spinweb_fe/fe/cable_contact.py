@@ -28,6 +28,8 @@ crossing audit, which runs with the contact, counts the crossings that still hap
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -132,19 +134,76 @@ def kick(vel, force, inv_mass, dt):
         vel[i, 2] += h * force[i, 2]
 
 
+class ContactKernel(NamedTuple):
+    """The cable-cable contact as the step loop sees it (:meth:`CableContact.kernel`).
+
+    elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; force
+    (n, 3) [N] and share (n,) int64: scratch; pos0: the audit's; radius [m], kappa, margin
+    [m] (the fail-safe's), rounds; stats (7,): stored energy [J], pairs in contact, deepest
+    penetration [m] now and over the run, energy the fail-safe took [J], its impulses,
+    crossings it left; rows (R, 2): stored energy and dissipation at each history row [J].
+    """
+
+    elem_nodes: np.ndarray
+    pairs: np.ndarray
+    reach: np.ndarray
+    force: np.ndarray
+    share: np.ndarray
+    pos0: np.ndarray
+    radius: float
+    kappa: float
+    margin: float
+    rounds: int
+    stats: np.ndarray
+    rows: np.ndarray
+
+
+#: ContactKernel.stats slots
+ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT = range(7)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def contact_push(ck, pos, vel, inv_mass, dt):
+    """The penalty forces at x_n and their kick of v_{n-1/2}."""
+    st = ck.stats
+    st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
+                                                    ck.reach, ck.radius, ck.kappa, dt,
+                                                    ck.force, ck.share)
+    st[IN_CONTACT] = count
+    st[DEEPEST_RUN] = max(st[DEEPEST_RUN], st[DEEPEST])
+    if count:
+        kick(vel, ck.force, inv_mass, dt)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def contact_resolve(ck, pos, vel, inv_mass, dt):
+    """The fail-safe over the step just taken from ``ck.pos0``."""
+    taken, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
+                                       dt, ck.margin, ck.rounds)
+    ck.stats[TAKEN] += taken
+    ck.stats[IMPULSES] += n
+    ck.stats[LEFT] += left
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def contact_row(ck, k):
+    """Row ``k`` of the call: the stored energy and the fail-safe's dissipation so far."""
+    ck.rows[k, 0] = ck.stats[ENERGY]
+    ck.rows[k, 1] = ck.stats[TAKEN]
+
+
 class CableContact:
-    """The contact of a run: its radius [m] and stiffness factor, the force buffer, and
-    what the last evaluation found (``energy`` [J], ``count``, ``deepest`` [m])."""
+    """The contact of a run: its radius [m] and stiffness factor, each listed pair's contact
+    distance, and the step loop's view of it (:meth:`kernel`: a :class:`ContactKernel`, whose
+    ``stats`` say what the last step found and what the fail-safe did so far)."""
 
     def __init__(self, model, radius: float, kappa: float = KAPPA):
         self.radius, self.kappa = float(radius), float(kappa)
         self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
         self.force = np.zeros((model.n_nodes, 3))
         self.share = np.zeros(model.n_nodes, np.int64)
-        self.energy, self.count, self.deepest = 0.0, 0, 0.0
-        self.deepest_run = 0.0
+        self.stats = np.zeros(7)
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
-        self.dissipated, self.impulses, self.unresolved = 0.0, 0, 0
 
     def sync(self, codes, dist):
         """A new candidate list (its pairs' sorted ``codes`` and distances at the build
@@ -159,27 +218,40 @@ class CableContact:
             reach[same] = self.reach[i[same]]
         self.codes, self.reach = codes, reach
 
-    def push(self, pairs, state, dt: float, kick_nodes: bool = True):
-        """The penalty forces at the state's positions x_n; with ``kick_nodes``, v_{n-1/2}
-        += dt f / m (the step then kicks with the cables' forces on top: the contact is
-        part of f_n)."""
-        self.energy, self.count, self.deepest = contact_forces(
-            pairs, self.elem_nodes, state.node_pos, state.node_inv_mass, self.reach,
-            self.radius, self.kappa, dt, self.force, self.share)
-        self.deepest_run = max(self.deepest_run, self.deepest)
-        if kick_nodes and self.count:
-            kick(state.node_vel, self.force, state.node_inv_mass, dt)
+    def kernel(self, audit, rows: int):
+        """The step loop's view on the audit's list (``audit``: fe.touch.AuditKernel, whose
+        x_n it shares), with room for ``rows`` history rows a call."""
+        if audit.pairs is not getattr(self, "_pairs", None):  # the list was rebuilt
+            self._pairs = audit.pairs
+            self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach, self.force,
+                                         self.share, audit.pos0, self.radius, self.kappa,
+                                         MARGIN * self.radius, ROUNDS, self.stats,
+                                         np.zeros((rows, 2)))
+        return self._kernel
 
-    def resolve(self, pairs, pos0, state, dt: float):
-        """The step just taken from ``pos0``, made free of crossings by impulses
-        (:func:`resolve_crossings`; the state's positions and half-step velocities change);
-        the kinetic energy the impulses took is added to ``dissipated`` [J]."""
-        taken, n, left = resolve_crossings(pairs, self.elem_nodes, pos0, state.node_pos,
-                                           state.node_vel, state.node_inv_mass, dt,
-                                           MARGIN * self.radius, ROUNDS)
-        self.dissipated += taken
-        self.impulses += n
-        self.unresolved += left
+    @property
+    def energy(self) -> float:
+        """Stored in the penalty springs at the last step [J]."""
+        return float(self.stats[ENERGY])
+
+    @property
+    def dissipated(self) -> float:
+        """Kinetic energy the fail-safe's impulses took so far [J]."""
+        return float(self.stats[TAKEN])
+
+    @property
+    def deepest_run(self) -> float:
+        """The deepest penetration of the run so far [m]."""
+        return float(self.stats[DEEPEST_RUN])
+
+    @property
+    def impulses(self) -> int:
+        return int(self.stats[IMPULSES])
+
+    @property
+    def unresolved(self) -> int:
+        """Crossings the fail-safe's rounds left (the audit counts them)."""
+        return int(self.stats[LEFT])
 
 
 def cable_radius(case, model) -> float:

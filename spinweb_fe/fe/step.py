@@ -44,6 +44,7 @@ from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
+from spinweb_fe.fe.touch import SERVICE, touch_begin, touch_end, touch_row
 from spinweb_fe.fe.vectors import node_momenta, plane_stats
 
 
@@ -309,7 +310,8 @@ def write_row(row, sr, t, theta, w, torque, ke, se, lz, tmax, totals, incr):
 
 
 @njit(cache=True, nogil=True)
-def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, threads=None):
+def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, threads=None,
+            audit=None, contact=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
     ``model`` is the kernel view of the Model (``Model.kernel``), ``axis`` and ``body`` its
@@ -322,7 +324,10 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     plane, and every free hub; without it numba compiles none of that). ``threads``: None
     for one thread (numba compiles no thread kernel), else the number of threads, which run
     the workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
-    reduction order). Returns (status, rows): 0 ok, 1 non-finite.
+    reduction order). ``audit`` (fe.touch.AuditKernel) and ``contact``
+    (fe.touch.ContactKernel), if given, the crossing audit and the cable-cable contact
+    (fe.touch: numba compiles none of it without them). Returns (status, rows): 0 ok, 1
+    non-finite, fe.touch.SERVICE: stopped after a step for the audit's list.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     env, strength = model.env, model.strength
@@ -354,6 +359,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         record = step % rec.every == 0
         t = step * dt
         holding = any_held(arm_ptr, front)
+        touch_begin(audit, contact, pos, vel, inv_mass, dt)
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
@@ -400,6 +406,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
             if not (np.isfinite(ke) and np.isfinite(se)):
                 return 1, nrec
             probe_velocities(rec, nrec, vel, vprobe)
+            touch_row(audit, contact, nrec)
             nrec += 1
         # the hub's drift
         hub_angle[0] = hub_drift(axis, body, rs, kick, theta, dt)
@@ -421,6 +428,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if holding:  # the reels and brakes let their lines out
             device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs,
                          (step + 1) * dt, dt)
+        if touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front):
+            return SERVICE, nrec
     return 0, nrec
 
 

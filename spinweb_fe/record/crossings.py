@@ -1,14 +1,13 @@
 """The crossing audit (``[audit] crossings = true``): every time two cable elements pass
 through each other during a run, counted and logged (issue #26; docs/results.md).
 
-The step loop itself is not changed: an audited run advances one step per call and, after
-each step, tests the candidate element pairs for a crossing over that step with the exact
-continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings` (the nodes move on
-straight lines over a step, as the central-difference update moves them). The candidates
-come from the hash-grid broad phase with a skin, rebuilt outside the step when a node has
-moved more than half the skin, in the hub's frame, since the last build (distances do not
-change in a rigidly turning frame, so the spin itself never forces a rebuild), or when a
-held level went free. Which elements take part:
+The step loop tests each step itself (fe.touch: after each step, the candidate element
+pairs with the exact continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings`; the
+nodes move on straight lines over a step, as the central-difference update moves them), and
+stops for this class to rebuild the list. The candidates come from the hash-grid broad
+phase with a skin, rebuilt when a node has moved more than half the skin, in the hub's frame,
+since the last build (distances do not change in a rigidly turning frame, so the spin
+itself never forces a rebuild), or when a held level went free. Which elements take part:
 
 - only released material: an element with both ends held on the coil moves with the hub;
 - a pair closer than ``touch`` [m] when it enters the list (the star fold's stacked layers
@@ -27,15 +26,15 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.crossing import (candidate_pairs, moved_since, pair_distances,
-                                    step_crossings)
+from spinweb_fe.fe.crossing import candidate_pairs, pair_distances
+from spinweb_fe.fe.touch import LOG_PER_STEP, AuditKernel, audit_step
 
 #: default broad-phase skin [m]
 SKIN = 0.5
 #: default distance [m] below which a pair entering the list is left out until it separates
 TOUCH = 1e-3
-#: crossings logged per step at most (the count has them all)
-LOG_PER_STEP = 64
+#: room of the step loop's log (crossings logged between two calls at most)
+LOG_ROOM = 4096
 
 
 def held_nodes(model, state) -> np.ndarray:
@@ -66,7 +65,7 @@ class CrossingAudit:
 
     name = "crossings"
 
-    def __init__(self, model, skin: float = SKIN, touch: float = TOUCH):
+    def __init__(self, model, skin: float = SKIN, touch: float = TOUCH, rows: int = 1):
         self.model = model
         self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
         self.skin, self.touch = float(skin), float(touch)
@@ -75,22 +74,21 @@ class CrossingAudit:
         self.pairs = np.zeros((0, 2), np.int64)
         self.pair_codes, self.pair_dist = np.zeros(0, np.int64), np.zeros(0)
         self.ignored = np.zeros(0, np.int64)
-        self.ref = None
-        self.fronts = None
         self._codes = None
-        self._out = (np.zeros(LOG_PER_STEP), np.zeros(LOG_PER_STEP, np.int64),
-                     np.zeros(LOG_PER_STEP, np.int64), np.zeros(LOG_PER_STEP, np.int64))
+        self._rows = rows
+        self.kernel = None
 
     def _code(self, pairs):
         return pairs[:, 0] * np.int64(len(self.elem_nodes)) + pairs[:, 1]
 
-    def build(self, state):
-        """The candidate list at the state's positions (and the pairs left out)."""
+    def build(self, state, rows: int | None = None):
+        """The candidate list at the state's positions (and the pairs left out), and the
+        step loop's view of it (:attr:`kernel`, with room for ``rows`` history rows a
+        call)."""
         pos = state.node_pos
         held = held_nodes(self.model, state)
         active = ~(held[self.elem_nodes[:, 0]] & held[self.elem_nodes[:, 1]])
         pairs = candidate_pairs(pos, self.elem_nodes, active, self.skin)
-        self._active = active
         dist = pair_distances(pairs, self.elem_nodes, pos)
         code = self._code(pairs)
         # a pair that enters the list touching is left out; one left out stays out until
@@ -105,33 +103,42 @@ class CrossingAudit:
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
         theta = float(state.hub.angle[0])
         c, s = math.cos(theta), math.sin(theta)
-        self.ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
-                                    -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
-        self.fronts = state.coil.front.copy()
+        ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
+                               -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
+        self._rows = rows or self._rows
+        old = self.kernel
+        pos0 = old.pos0 if old is not None else np.zeros_like(pos)
+        self.kernel = AuditKernel(
+            self.elem_nodes, self.pairs, self.ignored, active, ref,
+            np.array(state.coil.front, np.int64), pos0, self.skin,
+            np.array([self.count], np.int64), np.zeros(LOG_ROOM), np.zeros(LOG_ROOM, np.int64),
+            np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64),
+            np.zeros(self._rows), np.zeros(1))
         self.rebuilds += 1
+
+    def take(self, state) -> None:
+        """After a call of the step loop: its log into :attr:`log`, and a rebuild if the
+        list went stale."""
+        k = self.kernel
+        n = int(k.n_log[0])
+        if n:
+            self.log["time"].extend(k.log_time[:n].tolist())
+            self.log["element_a"].extend(k.log_a[:n].tolist())
+            self.log["element_b"].extend(k.log_b[:n].tolist())
+            self.log["direction"].extend(k.log_sign[:n].tolist())
+            k.n_log[0] = 0
+        self.count = int(k.count[0])
+        if k.moved[0] > 0.5 * self.skin or not np.array_equal(k.fronts, state.coil.front):
+            self.build(state)
 
     def step(self, pos0, state, t0: float, dt: float):
         """The crossings of the step that took the nodes from ``pos0`` to the state's
-        positions (starting at ``t0`` [s]); then a rebuild if the list went stale."""
-        out_t, out_e, out_f, out_s = self._out
-        theta = float(state.hub.angle[0])
-        c, s = math.cos(theta), math.sin(theta)
-        moved = moved_since(self.ref, state.node_pos, c, s)
-        pairs = self.pairs
-        if moved > self.skin:  # a step beyond the list's reach: a list as wide as the step
-            wide = candidate_pairs(pos0, self.elem_nodes, self._active, self.skin + moved)
-            pairs = wide[~np.isin(self._code(wide), self.ignored)]
-        n = step_crossings(pairs, self.elem_nodes, pos0, state.node_pos, out_t, out_e,
-                           out_f, out_s)
-        if n:
-            k = min(n, LOG_PER_STEP)
-            self.count += n
-            self.log["time"].extend((t0 + out_t[:k] * dt).tolist())
-            self.log["element_a"].extend(out_e[:k].tolist())
-            self.log["element_b"].extend(out_f[:k].tolist())
-            self.log["direction"].extend(out_s[:k].tolist())
-        if moved > 0.5 * self.skin or not np.array_equal(self.fronts, state.coil.front):
-            self.build(state)
+        positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
+        the list went stale (scripted motions: tests)."""
+        self.kernel.pos0[:] = pos0
+        audit_step(self.kernel, state.node_pos, float(state.hub.angle[0]), t0, dt,
+                   np.asarray(state.coil.front, np.int64))
+        self.take(state)
 
     def table(self) -> dict:
         """The log as arrays (name -> (K,) array)."""

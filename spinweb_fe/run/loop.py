@@ -20,6 +20,7 @@ from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS, STRENGTH, VEC_WIDTH, VEC
 from spinweb_fe.fe.model import Model
 from spinweb_fe.fe.payout import PAYOUTS
 from spinweb_fe.fe.state import State
+from spinweb_fe.fe.touch import SERVICE
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
 from spinweb_fe.record.history import hub_plane, table_rows
@@ -152,9 +153,9 @@ class _Chunks:
         self.model = model
         self.history = []
 
-    def advance(self, state, dt, nsteps):
+    def advance(self, state, dt, nsteps, audit=None, contact=None):
         return step.advance(*self.args, state, self.work, self.rec, dt, nsteps, self.vec,
-                            self.threads)
+                            self.threads, audit, contact)
 
     def rows(self, nrec) -> dict:
         rows = table_rows(self.rec.table, nrec, self.model)
@@ -212,8 +213,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     energy_limit : float
         Relative energy-balance error that stops the run (RunError).
     crossings : spinweb_fe.record.crossings.CrossingAudit or None
-        Count the crossings of elements: the loop then runs one step per call and the audit
-        tests each step (history column ``crossings``, the running count).
+        Count the crossings of elements: the step loop tests each step (fe.touch) and stops
+        when the audit's candidate list needs a rebuild (history column ``crossings``, the
+        running count).
     contact : spinweb_fe.fe.cable_contact.CableContact or None
         Cable-cable contact on the audit's candidate pairs (needs ``crossings``): its forces
         at x_n join the step's kick; history column ``cable_contact_energy``.
@@ -245,43 +247,52 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     t_compile = time.perf_counter()
     if resume is None:
         start(model, control, state, dt, chunks.work)
-    chunks.advance(state.copy(), dt, 0)  # compile / load the loop outside the timed part
+    room = ROWS_PER_CHUNK + 1  # history rows of a call
+    if crossings is not None:
+        crossings.build(state, room)
+
+    def kernels():
+        if crossings is None:
+            return None, None
+        if contact is None:
+            return crossings.kernel, None
+        if crossings.pair_codes is not contact.codes:  # the list was rebuilt
+            contact.sync(crossings.pair_codes, crossings.pair_dist)
+        return crossings.kernel, contact.kernel(crossings.kernel, room)
+
+    # compile / load the loop outside the timed part
+    chunks.advance(state.copy(), dt, 0, *kernels())
     compile_s = time.perf_counter() - t_compile
     for r in recorders:
         r.start(RunInfo(model, dt, n_total, step0, threads))
-    if crossings is not None:
-        crossings.build(state)
-
-    def push(kick_nodes):
-        if crossings.pair_codes is not contact.codes:  # the list was rebuilt
-            contact.sync(crossings.pair_codes, crossings.pair_dist)
-        contact.push(crossings.pairs, state, dt, kick_nodes)
 
     def advance(nsteps):
         if crossings is None:
             return chunks.advance(state, dt, nsteps)
-        for _ in range(nsteps):  # one step per call, each tested for crossings
-            pos0, t0 = state.node_pos.copy(), float(state.time[0])
-            if contact is not None:
-                push(True)
-            code, nrec = chunks.advance(state, dt, 1)
+        end = int(state.step[0]) + nsteps
+        while int(state.step[0]) < end:  # the loop stops where the audit's list went stale
+            audit_k, contact_k = kernels()
+            code, nrec = chunks.advance(state, dt, end - int(state.step[0]), audit_k,
+                                        contact_k)
+            if code == SERVICE:
+                code = 0
+            crossings.take(state)
             if nrec or code:
-                collect(code, nrec)
-            if contact is not None:
-                contact.resolve(crossings.pairs, pos0, state, dt)
-            crossings.step(pos0, state, t0, dt)
+                collect(code, nrec, (audit_k, contact_k))
         return 0, 0
 
     def memory():
         return {o.name: o.memory() for o in owners if o.name}
 
-    def collect(code, nrec):
+    def collect(code, nrec, touched=None):
         rows = chunks.rows(nrec)
-        if crossings is not None:
-            rows["crossings"] = np.full(nrec, float(crossings.count))
-        if contact is not None:
-            rows["cable_contact_energy"] = np.full(nrec, contact.energy)
-            rows["cable_contact_dissipation"] = np.full(nrec, contact.dissipated)
+        if touched is not None:  # the audit's and the contact's columns of these rows
+            audit_k, contact_k = touched
+            if audit_k is not None:
+                rows["crossings"] = audit_k.row_count[:nrec].astype(float)
+            if contact_k is not None:
+                rows["cable_contact_energy"] = contact_k.rows[:nrec, 0].copy()
+                rows["cable_contact_dissipation"] = contact_k.rows[:nrec, 1].copy()
         if nrec:
             for r in recorders:
                 r.rows(rows)
@@ -313,12 +324,18 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
                 r.frame(frame)
             frames += 1
         if n == n_total:  # the last row: record at t_end on a copy, the state stays at t_end
-            if contact is not None:  # its energy at t_end (no kick: the state stays)
-                push(False)
+            touched = None
+            if crossings is not None:  # the columns at t_end, from copies: the state stays
+                audit_k, contact_k = kernels()
+                audit_k = _copied(audit_k)
+                contact_k = None if contact_k is None else \
+                    contact_k._replace(pos0=audit_k.pos0, stats=contact_k.stats.copy(),
+                                       reach=contact_k.reach.copy())
+                touched = (audit_k, contact_k)
             t0 = time.perf_counter()
-            code, nrec = chunks.advance(state.copy(), dt, 1)
+            code, nrec = chunks.advance(state.copy(), dt, 1, *(touched or (None, None)))
             loop_s += time.perf_counter() - t0
-            collect(code, nrec)
+            collect(0 if code == SERVICE else code, nrec, touched)
             break
         # next event: a chunk of rows, a frame, a checkpoint, the end, or the wall-time budget
         target = min(n_total, n + ROWS_PER_CHUNK * rec_every, n + budget)
@@ -332,11 +349,17 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         loop_s += elapsed
         # steps that take about WALL_CHUNK_S, growing at most 8-fold per chunk
         budget = max(1, min(8 * budget, int(WALL_CHUNK_S * (target - n) / max(elapsed, 1e-9))))
-        collect(code, nrec)
+        if crossings is None:  # (an audited advance collects its rows itself)
+            collect(code, nrec)
     for r in recorders:
         r.end(status)
     return RunResult(chunks.joined(), dt, int(state.step[0]), loop_s, compile_s, state, status,
                      frames, threads, reason, memory())
+
+
+def _copied(kernel):
+    """A tuple of arrays with every array copied (the audit's, for a trial step)."""
+    return type(kernel)(*(v.copy() if isinstance(v, np.ndarray) else v for v in kernel))
 
 
 def _checkpoint(recorders, state, memory):

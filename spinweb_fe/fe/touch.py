@@ -1,0 +1,138 @@
+"""The crossing audit and the cable-cable contact inside the step loop (issue #26): what
+``fe.step.advance`` does with them each step, and the arrays it does it on.
+
+``advance`` takes them as two optional arguments (None: numba prunes every line of them, so
+a scene without them compiles and runs as before):
+
+    step start   x_n kept (the step's motion is tested from there); the contact's penalty
+                 forces at x_n kick the free nodes' v_{n-1/2} (part of f_n)
+    row          the audit's count, the contact's stored energy and dissipation so far
+    step end     the contact's fail-safe (impulses at the exact crossing time, after the whole
+                 step: the hub's placing of tied and held nodes included); then the audit's
+                 exact test of the step, and whether its candidate list is still valid
+
+The loop stops after a step (status :data:`SERVICE`) when the audit's list has gone stale (a
+node moved more than half the skin in the hub's frame since the build, or a held level went
+free) or its log is nearly full: Python then rebuilds the list (record.crossings) and goes
+on. A list is valid while no node has moved more than the skin: a pair that was not listed
+was more than twice the skin apart (their boxes, widened by the skin on each side, did not
+overlap); a step that takes a node beyond the skin is tested on a list built for it, as wide
+as its motion.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from spinweb_fe.fe.cable_contact import contact_push, contact_resolve, contact_row
+from spinweb_fe.fe.crossing import candidate_pairs, moved_since, step_crossings
+
+#: status of ``advance``: stopped after a step for Python to rebuild the audit's list
+SERVICE = 2
+#: crossings logged per step at most (the count has them all)
+LOG_PER_STEP = 64
+
+
+class AuditKernel(NamedTuple):
+    """The crossing audit as the step loop sees it (record.crossings.CrossingAudit.kernel).
+
+    elem_nodes (m, 2) int64; pairs (P, 2) int64: the candidate list; ignored (I,) int64:
+    sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) bool:
+    elements with a released end; ref (n, 3) [m]: the nodes at the build, in the hub's frame
+    then; fronts (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the
+    step; skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
+    (L,): the log, n_log (1,) int64 of it filled; row_count (R,): the count at each history
+    row of the call; moved (1,) [m]: the largest motion since the build.
+    """
+
+    elem_nodes: np.ndarray
+    pairs: np.ndarray
+    ignored: np.ndarray
+    active: np.ndarray
+    ref: np.ndarray
+    fronts: np.ndarray
+    pos0: np.ndarray
+    skin: float
+    count: np.ndarray
+    log_time: np.ndarray
+    log_a: np.ndarray
+    log_b: np.ndarray
+    log_sign: np.ndarray
+    n_log: np.ndarray
+    row_count: np.ndarray
+    moved: np.ndarray
+
+
+@njit(cache=True)
+def wide_pairs(au, pos0, reach):
+    """The candidate pairs within ``reach`` [m] at ``pos0``, less the ignored ones."""
+    wide = candidate_pairs(pos0, au.elem_nodes, au.active, reach)
+    m = np.int64(au.elem_nodes.shape[0])
+    keep = np.ones(wide.shape[0], np.bool_)
+    if au.ignored.shape[0]:
+        for p in range(wide.shape[0]):
+            code = wide[p, 0] * m + wide[p, 1]
+            i = np.searchsorted(au.ignored, code)
+            keep[p] = not (i < au.ignored.shape[0] and au.ignored[i] == code)
+    return wide[keep]
+
+
+@njit(cache=True)
+def audit_step(au, pos, theta, t0, dt, fronts):
+    """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]; the
+    hub at ``theta`` [rad] now), counted and logged. Returns True if the list needs a
+    rebuild (or the log a flush) before the next step."""
+    moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))
+    au.moved[0] = moved
+    k = au.n_log[0]
+    end = k + LOG_PER_STEP
+    if moved > au.skin:  # a step beyond the list's reach: a list as wide as the step
+        pairs = wide_pairs(au, au.pos0, au.skin + moved)
+        n = step_crossings(pairs, au.elem_nodes, au.pos0, pos, au.log_time[k:end],
+                           au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+    else:
+        n = step_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.log_time[k:end],
+                           au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+    logged = min(n, LOG_PER_STEP)
+    for i in range(k, k + logged):
+        au.log_time[i] = t0 + au.log_time[i] * dt
+    au.n_log[0] = k + logged
+    au.count[0] += n
+    stale = moved > 0.5 * au.skin or au.n_log[0] + LOG_PER_STEP > au.log_time.shape[0]
+    for j in range(fronts.shape[0]):
+        stale = stale or fronts[j] != au.fronts[j]
+    return stale
+
+
+@njit(inline="always")
+def touch_begin(audit, contact, pos, vel, inv_mass, dt):
+    """Step start: x_n kept, the contact's kick."""
+    if audit is not None:
+        audit.pos0[:] = pos
+    elif contact is not None:
+        contact.pos0[:] = pos
+    if contact is not None:
+        contact_push(contact, pos, vel, inv_mass, dt)
+
+
+@njit(inline="always")
+def touch_row(audit, contact, k):
+    """The row's columns of the audit and the contact."""
+    if audit is not None:
+        audit.row_count[k] = audit.count[0]
+    if contact is not None:
+        contact_row(contact, k)
+
+
+@njit(inline="always")
+def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts):
+    """Step end: the fail-safe, then the audit. True: stop for Python."""
+    if contact is not None:
+        contact_resolve(contact, pos, vel, inv_mass, dt)
+    if audit is not None:
+        return audit_step(audit, pos, theta, t0, dt, fronts)
+    return False
