@@ -13,6 +13,7 @@ import pytest
 
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
+from spinweb_fe.fe.touch import REBUILD
 from spinweb_fe.record.crossings import CrossingAudit
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.loop import Schedule, simulate
@@ -57,7 +58,7 @@ def bar_through(speed, dt, steps, spin=0.0, skin=0.05):
 def test_a_bar_through_another_is_counted_once_with_its_time_and_direction(speed):
     """Element 1 passes element 0 at z = 0, t = 0.3 / speed: counted once (exactly), at that
     time to round-off (1e-12 s), with the direction of the signed volume after it, whatever
-    the speed (the list is rebuilt as the bar moves: half a skin per rebuild)."""
+    the speed (the list is rebuilt as the bar moves: 3/4 of a skin per rebuild)."""
     dt = 1e-4 if speed < 100 else 1e-5
     steps = int(round(0.6 / speed / dt))
     audit = bar_through(speed, dt, steps)
@@ -66,8 +67,8 @@ def test_a_bar_through_another_is_counted_once_with_its_time_and_direction(speed
     assert table["time"][0] == pytest.approx(0.3 / speed, abs=1e-12)
     assert set(table["element_a"]) | set(table["element_b"]) == {0, 1}
     assert table["direction"][0] in (-1, 1)
-    moved = speed * steps * dt  # 0.6 m: a rebuild at least every half skin
-    assert audit.rebuilds >= int(moved / (0.5 * audit.skin))
+    moved = speed * steps * dt  # 0.6 m: a rebuild at least every REBUILD skins
+    assert audit.rebuilds >= int(moved / (REBUILD * audit.skin))
 
 
 def test_the_spin_alone_never_rebuilds_the_list_and_keeps_the_count():

@@ -33,7 +33,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.crossing import apart, closest_points, pair_crossings
+from spinweb_fe.fe.crossing import (apart, boxes_apart, closest_nodes, closest_points,
+                                    pair_crossings, swept_boxes)
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
 KAPPA = 0.25
@@ -56,7 +57,8 @@ def _box_gap(pos, a, b, c, d):
 
 
 @njit(cache=True)
-def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share):
+def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share,
+                   box=None):
     """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
     which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
     radius, or less for a pair that entered the list closer: it is raised to the largest
@@ -65,7 +67,9 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     several elements at once (a column of stacked layers) shares the step's stiffness
     among them: each pair's k is divided by the most contacts one of its nodes has now
     (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
-    step. Returns (stored energy [J], pairs in contact, deepest penetration [m])."""
+    step. ``box`` (m, 6), if given: boxes that hold every element at ``pos`` (the swept
+    boxes of the step that led here, fe.crossing.swept_boxes), which rule out the pairs
+    farther apart than twice the radius (else the pairs' own boxes at ``pos``). Returns (stored energy [J], pairs in contact, deepest penetration [m])."""
     force[:] = 0.0
     share[:] = 0
     reach_max = 2.0 * radius
@@ -78,14 +82,18 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         e, g = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+        if box is None:
+            far = _box_gap(pos, a, b, c, d) >= reach_max
+        else:
+            far = boxes_apart(box, e, g, reach_max)
+        if far:
+            pd[p] = np.inf
+            continue
         if inv_mass[a] == 0.0 or inv_mass[b] == 0.0 or inv_mass[c] == 0.0 \
                 or inv_mass[d] == 0.0:
             pd[p] = np.nan
             continue
-        if _box_gap(pos, a, b, c, d) >= reach_max:
-            pd[p] = np.inf
-            continue
-        ps[p], pt[p], pd[p] = closest_points(pos[a], pos[b], pos[c], pos[d])
+        ps[p], pt[p], pd[p] = closest_nodes(pos, a, b, c, d)
         if 0.0 < pd[p] < reach[p]:
             share[a] += 1
             share[b] += 1
@@ -138,7 +146,8 @@ class ContactKernel(NamedTuple):
     """The cable-cable contact as the step loop sees it (:meth:`CableContact.kernel`).
 
     elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; force
-    (n, 3) [N] and share (n,) int64: scratch; pos0: the audit's; radius [m], kappa, margin
+    (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
+    elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
     [m] (the fail-safe's), rounds; stats (7,): stored energy [J], pairs in contact, deepest
     penetration [m] now and over the run, energy the fail-safe took [J], its impulses,
     crossings it left; rows (R, 2): stored energy and dissipation at each history row [J].
@@ -150,6 +159,8 @@ class ContactKernel(NamedTuple):
     force: np.ndarray
     share: np.ndarray
     pos0: np.ndarray
+    active: np.ndarray
+    box: np.ndarray
     radius: float
     kappa: float
     margin: float
@@ -168,7 +179,7 @@ def contact_push(ck, pos, vel, inv_mass, dt):
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,
-                                                    ck.force, ck.share)
+                                                    ck.force, ck.share, ck.box)
     st[IN_CONTACT] = count
     st[DEEPEST_RUN] = max(st[DEEPEST_RUN], st[DEEPEST])
     if count:
@@ -177,12 +188,16 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_resolve(ck, pos, vel, inv_mass, dt):
-    """The fail-safe over the step just taken from ``ck.pos0``."""
+    """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
+    Returns its impulses (0: the positions and the boxes stand) and the crossings its last
+    pass left (both 0: no pair of the list crossed in the step)."""
+    swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
     taken, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds)
+                                       dt, ck.margin, ck.rounds, ck.box)
     ck.stats[TAKEN] += taken
     ck.stats[IMPULSES] += n
     ck.stats[LEFT] += left
+    return n, left
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -199,7 +214,7 @@ class CableContact:
 
     def __init__(self, model, radius: float, kappa: float = KAPPA):
         self.radius, self.kappa = float(radius), float(kappa)
-        self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
+        self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.force = np.zeros((model.n_nodes, 3))
         self.share = np.zeros(model.n_nodes, np.int64)
         self.stats = np.zeros(7)
@@ -224,7 +239,8 @@ class CableContact:
         if audit.pairs is not getattr(self, "_pairs", None):  # the list was rebuilt
             self._pairs = audit.pairs
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach, self.force,
-                                         self.share, audit.pos0, self.radius, self.kappa,
+                                         self.share, audit.pos0, audit.active, audit.box,
+                                         self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.stats,
                                          np.zeros((rows, 2)))
         return self._kernel
@@ -265,7 +281,8 @@ def cable_radius(case, model) -> float:
 
 
 @njit(cache=True)
-def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds):
+def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
+                      box=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.crossing's exact test) gets an impulse along the normal of the two
@@ -275,24 +292,29 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     (x_{n+1} = x_n + dt v_{n+1/2}). A node that does not move freely (inv_mass 0: held on
     or tied to the hub) takes no share (its side is infinitely heavy; the hub does not
     yet feel the reaction). The first pass tests every pair, later passes (at most
-    ``rounds`` in all) the pairs with a node an impulse moved. Returns (kinetic energy the
+    ``rounds`` in all) the pairs with a node an impulse moved; ``box`` (m, 6), if given,
+    the elements' swept boxes of the step (fe.crossing.swept_boxes) for the first pass. Returns (kinetic energy the
     impulses took [J], impulses, crossings left)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
+    scratch, cuts = np.empty((4, 3)), np.empty(4)
     taken, impulses, left = 0.0, 0, 0
     moved = np.ones(pos0.shape[0], np.bool_)
-    for _ in range(rounds):
+    for rnd in range(rounds):
         now = np.zeros(pos0.shape[0], np.bool_)
         left = 0
         for p in range(pairs.shape[0]):
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-            if not (moved[a] or moved[b] or moved[c] or moved[d]) \
+            if box is not None and rnd == 0:
+                if boxes_apart(box, e, g, 0.0):
+                    continue
+            elif not (moved[a] or moved[b] or moved[c] or moved[d]) \
                     or apart(pos0, pos1, a, b, c, d):
                 continue
             if pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
-                              pos1[d], times, signs) == 0:
+                              pos1[d], times, signs, scratch, cuts) == 0:
                 continue
             left += 1
             tau = times[0]

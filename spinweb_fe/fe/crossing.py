@@ -16,8 +16,9 @@ speed: a crossing at any speed within the step is found (the tests go to 200 m/s
 Broad phase. Every element's box, widened by ``skin`` on each side, goes into a uniform
 hash grid (cells of the longest element plus twice the skin, sorted by cell: O(n log n));
 the pairs of elements without a common node whose widened boxes overlap are the
-candidates, valid while no node has moved more than skin / 2 from where it was at the
-build (two nodes then close by at most the skin).
+candidates. A pair left out was more than twice the skin apart, so the list holds every
+pair that can meet while no node has moved more than the skin from where it was at the
+build (two elements then close by at most twice the skin).
 """
 
 from __future__ import annotations
@@ -58,14 +59,14 @@ def _lines_meet(w):
     """The lines of segments w[0] w[1] and w[2] w[3] (coplanar) meet inside both: the
     parameters of their closest points in [0, 1) x [0, 1) (half-open: a crossing exactly
     through a shared end is counted by one of the two elements). Parallel lines: no."""
-    d1 = w[1] - w[0]
-    d2 = w[3] - w[2]
-    r = w[0] - w[2]
-    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
-    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
-    c = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
-    d = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
-    e = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2]
+    d10, d11, d12 = w[1, 0] - w[0, 0], w[1, 1] - w[0, 1], w[1, 2] - w[0, 2]
+    d20, d21, d22 = w[3, 0] - w[2, 0], w[3, 1] - w[2, 1], w[3, 2] - w[2, 2]
+    r0, r1, r2 = w[0, 0] - w[2, 0], w[0, 1] - w[2, 1], w[0, 2] - w[2, 2]
+    a = d10 * d10 + d11 * d11 + d12 * d12
+    b = d10 * d20 + d11 * d21 + d12 * d22
+    c = d20 * d20 + d21 * d21 + d22 * d22
+    d = d10 * r0 + d11 * r1 + d12 * r2
+    e = d20 * r0 + d21 * r1 + d22 * r2
     den = a * c - b * b
     if den <= 1e-14 * a * c:
         return False
@@ -75,12 +76,16 @@ def _lines_meet(w):
 
 
 @njit(cache=True)
-def pair_crossings(a0, a1, b0, b1, c0, c1, d0, d1, times, signs):
+def pair_crossings(a0, a1, b0, b1, c0, c1, d0, d1, times, signs, w=None, cuts=None):
     """Crossings of element AB (ends a, b) and CD during a step: each point from its
     position at the step's start (``*0``) to its end (``*1``). Writes the step fractions
     t in (0, 1] of up to 3 crossings into ``times`` and the sign of V after each into
-    ``signs``; returns how many."""
-    w = np.empty((4, 3))
+    ``signs``; returns how many. ``w`` (4, 3) and ``cuts`` (4,): scratch, if given (a
+    loop over pairs makes them once)."""
+    if w is None:
+        w = np.empty((4, 3))
+    if cuts is None:
+        cuts = np.empty(4)
     # V(t) = k0 + k1 t + k2 t^2 + k3 t^3 from four samples (exact for a cubic)
     v0 = _volume_at(a0, a1, b0, b1, c0, c1, d0, d1, 0.0, w)
     v1 = _volume_at(a0, a1, b0, b1, c0, c1, d0, d1, 1.0 / 3.0, w)
@@ -90,7 +95,6 @@ def pair_crossings(a0, a1, b0, b1, c0, c1, d0, d1, times, signs):
     k2 = 9.0 * v0 - 22.5 * v1 + 18.0 * v2 - 4.5 * v3
     k3 = -4.5 * v0 + 13.5 * v1 - 13.5 * v2 + 4.5 * v3
     # the pieces: [0, 1] cut at the roots of V' = k1 + 2 k2 t + 3 k3 t^2 inside it
-    cuts = np.empty(4)
     n_cut = 0
     cuts[n_cut] = 0.0
     n_cut += 1
@@ -200,64 +204,97 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     # every element into each cell its box touches (at most 2 per axis: the cell is at
     # least the box's size), as (cell key, element) entries sorted by key
     keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m)
-    order = np.argsort(keys[:n_ent], kind="mergesort")
-    out = np.empty((16, 2), np.int64)
+    order = np.argsort(keys[:n_ent])
+    skeys = keys[order]
+    sowners = owners[order]
+    # then each element's partners of higher index from the cells it touches (each once:
+    # ``seen``), in ascending order: the list comes out sorted by code e * m + f
+    big = np.int64(GRID_SPAN)
+    seen = np.full(m, -1, np.int64)
+    row = np.empty(m, np.int64)
+    out = np.empty((max(16, 8 * m), 2), np.int64)
     n_out = 0
-    s = 0
-    while s < n_ent:
-        t = s
-        key = keys[order[s]]
-        while t < n_ent and keys[order[t]] == key:
-            t += 1
-        for p in range(s, t):
-            e = owners[order[p]]
-            for q in range(p + 1, t):
-                f = owners[order[q]]
-                if e == f:
-                    continue
-                ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
-                fa, fb = elem_nodes[f, 0], elem_nodes[f, 1]
-                if ea == fa or ea == fb or eb == fa or eb == fb:
-                    continue
-                if (lo[e, 0] > hi[f, 0] or lo[f, 0] > hi[e, 0] or lo[e, 1] > hi[f, 1]
-                        or lo[f, 1] > hi[e, 1] or lo[e, 2] > hi[f, 2] or lo[f, 2] > hi[e, 2]):
-                    continue
-                if n_out == out.shape[0]:
-                    grown = np.empty((2 * out.shape[0], 2), np.int64)
-                    grown[:n_out] = out[:n_out]
-                    out = grown
-                out[n_out, 0] = min(e, f)
-                out[n_out, 1] = max(e, f)
-                n_out += 1
-        s = t
-    if n_out == 0:
-        return out[:0]
-    # a pair that shares several cells is listed once
-    code = out[:n_out, 0] * np.int64(m) + out[:n_out, 1]
-    code = np.unique(code)
-    pairs = np.empty((len(code), 2), np.int64)
-    for i in range(len(code)):
-        pairs[i, 0] = code[i] // m
-        pairs[i, 1] = code[i] % m
-    return pairs
+    for e in range(m):
+        if not active[e]:
+            continue
+        ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
+        i0 = np.int64((lo[e, 0] - origin[0]) / cell)
+        j0 = np.int64((lo[e, 1] - origin[1]) / cell)
+        k0 = np.int64((lo[e, 2] - origin[2]) / cell)
+        i1 = np.int64((hi[e, 0] - origin[0]) / cell)
+        j1 = np.int64((hi[e, 1] - origin[1]) / cell)
+        k1 = np.int64((hi[e, 2] - origin[2]) / cell)
+        n_row = 0
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    key = (i * big + j) * big + k
+                    q = np.searchsorted(skeys, key)
+                    while q < n_ent and skeys[q] == key:
+                        f = sowners[q]
+                        q += 1
+                        if f <= e or seen[f] == e:
+                            continue
+                        seen[f] = e
+                        fa, fb = elem_nodes[f, 0], elem_nodes[f, 1]
+                        if ea == fa or ea == fb or eb == fa or eb == fb:
+                            continue
+                        if (lo[e, 0] > hi[f, 0] or lo[f, 0] > hi[e, 0] or lo[e, 1] > hi[f, 1]
+                                or lo[f, 1] > hi[e, 1] or lo[e, 2] > hi[f, 2]
+                                or lo[f, 2] > hi[e, 2]):
+                            continue
+                        row[n_row] = f
+                        n_row += 1
+        if n_out + n_row > out.shape[0]:
+            grown = np.empty((2 * (n_out + n_row), 2), np.int64)
+            grown[:n_out] = out[:n_out]
+            out = grown
+        part = np.sort(row[:n_row])
+        for r in range(n_row):
+            out[n_out, 0] = e
+            out[n_out, 1] = part[r]
+            n_out += 1
+    return out[:n_out].copy()
 
 
 @njit(cache=True)
-def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
-    """Every crossing of the candidate ``pairs`` while the nodes move from ``pos0`` to
-    ``pos1`` (one step); writes its step fraction, elements and sign into the ``out_*``
-    arrays (as many as they hold) and returns the count (possibly more than they hold)."""
+def swept_boxes(elem_nodes, active, pos0, pos1, box):
+    """Into row e of ``box`` (m, 6) the box [lo x y z, hi x y z] [m] that ``active``
+    element e sweeps while its nodes move from ``pos0`` to ``pos1`` (other rows stay)."""
+    for e in range(elem_nodes.shape[0]):
+        if not active[e]:
+            continue
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        for k in range(3):
+            box[e, k] = min(min(pos0[a, k], pos1[a, k]), min(pos0[b, k], pos1[b, k]))
+            box[e, 3 + k] = max(max(pos0[a, k], pos1[a, k]), max(pos0[b, k], pos1[b, k]))
+
+
+@njit(inline="always")
+def boxes_apart(box, e, f, gap):
+    """True when the boxes of elements e and f (rows of ``box``) are more than ``gap`` [m]
+    apart along an axis (the hub's axis first: stacked layers part along it)."""
+    return (box[e, 2] - gap > box[f, 5] or box[f, 2] - gap > box[e, 5]
+            or box[e, 0] - gap > box[f, 3] or box[f, 0] - gap > box[e, 3]
+            or box[e, 1] - gap > box[f, 4] or box[f, 1] - gap > box[e, 4])
+
+
+@njit(cache=True)
+def boxed_crossings(pairs, elem_nodes, pos0, pos1, box, out_t, out_e, out_f, out_s):
+    """:func:`step_crossings` with the elements' swept boxes given (``box``: rows of
+    :func:`swept_boxes` for every element of ``pairs``)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
+    w, cuts = np.empty((4, 3)), np.empty(4)
     n = 0
     for p in range(pairs.shape[0]):
         e, f = pairs[p, 0], pairs[p, 1]
+        if boxes_apart(box, e, f, 0.0):
+            continue
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
-        if apart(pos0, pos1, a, b, c, d):
-            continue
         k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
-                           pos0[d], pos1[d], times, signs)
+                           pos0[d], pos1[d], times, signs, w, cuts)
         for i in range(k):
             if n < out_t.shape[0]:
                 out_t[n] = times[i]
@@ -266,6 +303,16 @@ def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
                 out_s[n] = signs[i]
             n += 1
     return n
+
+
+@njit(cache=True)
+def step_crossings(pairs, elem_nodes, pos0, pos1, out_t, out_e, out_f, out_s):
+    """Every crossing of the candidate ``pairs`` while the nodes move from ``pos0`` to
+    ``pos1`` (one step); writes its step fraction, elements and sign into the ``out_*``
+    arrays (as many as they hold) and returns the count (possibly more than they hold)."""
+    box = np.empty((elem_nodes.shape[0], 6))
+    swept_boxes(elem_nodes, np.ones(elem_nodes.shape[0], np.bool_), pos0, pos1, box)
+    return boxed_crossings(pairs, elem_nodes, pos0, pos1, box, out_t, out_e, out_f, out_s)
 
 
 @njit(inline="always")
@@ -282,18 +329,18 @@ def apart(pos0, pos1, a, b, c, d):
     return False
 
 
-@njit(cache=True)
-def closest_points(p0, p1, q0, q1):
-    """(s, t, distance): the parameters of the closest points of segments p0p1 and q0q1
-    (clamped to both segments; parallel segments handled) and their distance [m]."""
-    d1 = p1 - p0
-    d2 = q1 - q0
-    w = p0 - q0
-    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
-    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
-    f = d2[0] * w[0] + d2[1] * w[1] + d2[2] * w[2]
-    c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
-    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+@njit(inline="always")
+def _closest(p00, p01, p02, p10, p11, p12, q00, q01, q02, q10, q11, q12):
+    """closest_points on the twelve coordinates (scalars: no array is made, as this runs
+    for every close pair of every step)."""
+    d10, d11, d12 = p10 - p00, p11 - p01, p12 - p02
+    d20, d21, d22 = q10 - q00, q11 - q01, q12 - q02
+    w0, w1, w2 = p00 - q00, p01 - q01, p02 - q02
+    a = d10 * d10 + d11 * d11 + d12 * d12
+    e = d20 * d20 + d21 * d21 + d22 * d22
+    f = d20 * w0 + d21 * w1 + d22 * w2
+    c = d10 * w0 + d11 * w1 + d12 * w2
+    b = d10 * d20 + d11 * d21 + d12 * d22
     den = a * e - b * b
     s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
     t = (b * s + f) / e
@@ -301,8 +348,25 @@ def closest_points(p0, p1, q0, q1):
         t, s = 0.0, min(max(-c / a, 0.0), 1.0)
     elif t > 1.0:
         t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
-    x = w + s * d1 - t * d2
-    return s, t, np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    x0 = w0 + s * d10 - t * d20
+    x1 = w1 + s * d11 - t * d21
+    x2 = w2 + s * d12 - t * d22
+    return s, t, np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+
+
+@njit(cache=True)
+def closest_points(p0, p1, q0, q1):
+    """(s, t, distance): the parameters of the closest points of segments p0p1 and q0q1
+    (clamped to both segments; parallel segments handled) and their distance [m]."""
+    return _closest(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], q0[0], q0[1], q0[2], q1[0],
+                    q1[1], q1[2])
+
+
+@njit(inline="always")
+def closest_nodes(pos, a, b, c, d):
+    """closest_points of the segments of nodes a b and c d (rows of ``pos``)."""
+    return _closest(pos[a, 0], pos[a, 1], pos[a, 2], pos[b, 0], pos[b, 1], pos[b, 2],
+                    pos[c, 0], pos[c, 1], pos[c, 2], pos[d, 0], pos[d, 1], pos[d, 2])
 
 
 @njit(cache=True)
@@ -317,8 +381,21 @@ def pair_distances(pairs, elem_nodes, pos):
     out = np.empty(pairs.shape[0])
     for p in range(pairs.shape[0]):
         e, f = pairs[p, 0], pairs[p, 1]
-        out[p] = segment_distance(pos[elem_nodes[e, 0]], pos[elem_nodes[e, 1]],
-                                  pos[elem_nodes[f, 0]], pos[elem_nodes[f, 1]])
+        out[p] = closest_nodes(pos, elem_nodes[e, 0], elem_nodes[e, 1], elem_nodes[f, 0],
+                               elem_nodes[f, 1])[2]
+    return out
+
+
+@njit(cache=True)
+def sorted_in(a, b):
+    """(len(a),) bool: which entries of the ascending ``a`` occur in the ascending ``b``
+    (a merge: O(len(a) + len(b)))."""
+    out = np.zeros(a.shape[0], np.bool_)
+    j = 0
+    for i in range(a.shape[0]):
+        while j < b.shape[0] and b[j] < a[i]:
+            j += 1
+        out[i] = j < b.shape[0] and b[j] == a[i]
     return out
 
 

@@ -12,12 +12,15 @@ a scene without them compiles and runs as before):
                  exact test of the step, and whether its candidate list is still valid
 
 The loop stops after a step (status :data:`SERVICE`) when the audit's list has gone stale (a
-node moved more than half the skin in the hub's frame since the build, or a held level went
-free) or its log is nearly full: Python then rebuilds the list (record.crossings) and goes
-on. A list is valid while no node has moved more than the skin: a pair that was not listed
-was more than twice the skin apart (their boxes, widened by the skin on each side, did not
-overlap); a step that takes a node beyond the skin is tested on a list built for it, as wide
-as its motion.
+node moved more than :data:`REBUILD` of the skin in the hub's frame since the build, or a
+held level went free) or its log is nearly full: Python then rebuilds the list
+(record.crossings) and goes on. A list is valid while no node has moved more than the skin:
+a pair that was not listed was more than twice the skin apart (their boxes, widened by the
+skin on each side, did not overlap); a step that takes a node beyond :data:`WIDE` of the skin
+is tested on a list built for it, as wide as its motion. Every pair of the list is tested
+each step, first by the boxes the two elements swept (computed once per step and element),
+then, for the few whose boxes meet, exactly. With the contact, the fail-safe runs that test
+first; a step in which it found no crossing (and moved nothing) is not tested again.
 """
 
 from __future__ import annotations
@@ -29,12 +32,20 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.cable_contact import contact_push, contact_resolve, contact_row
-from spinweb_fe.fe.crossing import candidate_pairs, moved_since, step_crossings
+from spinweb_fe.fe.crossing import boxed_crossings, candidate_pairs, moved_since, swept_boxes
 
 #: status of ``advance``: stopped after a step for Python to rebuild the audit's list
 SERVICE = 2
 #: crossings logged per step at most (the count has them all)
 LOG_PER_STEP = 64
+#: the list is rebuilt after a step that left a node this share of the skin from its place
+#: at the build (hub's frame)
+REBUILD = 0.75
+#: a step that takes a node beyond this share of the skin is tested on a list of its own
+#: (the rest of the skin covers the chord of a turning frame: a node at radius rho strays
+#: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the hub by
+#: dtheta and moves the node by u in it, microns at 25 rad/s)
+WIDE = 0.9
 
 
 class AuditKernel(NamedTuple):
@@ -44,7 +55,8 @@ class AuditKernel(NamedTuple):
     sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) bool:
     elements with a released end; ref (n, 3) [m]: the nodes at the build, in the hub's frame
     then; fronts (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the
-    step; skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
+    step; box (m, 6) [m]: the boxes the active elements swept over the last step
+    (fe.crossing.swept_boxes; at the build, their boxes then); skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
     (L,): the log, n_log (1,) int64 of it filled; row_count (R,): the count at each history
     row of the call; moved (1,) [m]: the largest motion since the build.
     """
@@ -56,6 +68,7 @@ class AuditKernel(NamedTuple):
     ref: np.ndarray
     fronts: np.ndarray
     pos0: np.ndarray
+    box: np.ndarray
     skin: float
     count: np.ndarray
     log_time: np.ndarray
@@ -82,27 +95,34 @@ def wide_pairs(au, pos0, reach):
 
 
 @njit(cache=True)
-def audit_step(au, pos, theta, t0, dt, fronts):
+def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
     """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]; the
-    hub at ``theta`` [rad] now), counted and logged. Returns True if the list needs a
-    rebuild (or the log a flush) before the next step."""
+    hub at ``theta`` [rad] now), counted and logged (``fresh``: ``au.box`` already holds
+    this step's swept boxes; ``clean``: the contact's fail-safe tested this list on this
+    motion and found no crossing, so the same test is not run again). Returns True if the
+    list needs a rebuild (or the log a flush) before the next step."""
+    if not fresh:
+        swept_boxes(au.elem_nodes, au.active, au.pos0, pos, au.box)
     moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))
     au.moved[0] = moved
     k = au.n_log[0]
     end = k + LOG_PER_STEP
-    if moved > au.skin:  # a step beyond the list's reach: a list as wide as the step
+    if moved > WIDE * au.skin:  # a step beyond the list's reach: a list as wide as it
         pairs = wide_pairs(au, au.pos0, au.skin + moved)
-        n = step_crossings(pairs, au.elem_nodes, au.pos0, pos, au.log_time[k:end],
-                           au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+        n = boxed_crossings(pairs, au.elem_nodes, au.pos0, pos, au.box, au.log_time[k:end],
+                            au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+    elif clean:
+        n = 0
     else:
-        n = step_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.log_time[k:end],
-                           au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+        n = boxed_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.box,
+                            au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
+                            au.log_sign[k:end])
     logged = min(n, LOG_PER_STEP)
     for i in range(k, k + logged):
         au.log_time[i] = t0 + au.log_time[i] * dt
     au.n_log[0] = k + logged
     au.count[0] += n
-    stale = moved > 0.5 * au.skin or au.n_log[0] + LOG_PER_STEP > au.log_time.shape[0]
+    stale = moved > REBUILD * au.skin or au.n_log[0] + LOG_PER_STEP > au.log_time.shape[0]
     for j in range(fronts.shape[0]):
         stale = stale or fronts[j] != au.fronts[j]
     return stale
@@ -131,8 +151,11 @@ def touch_row(audit, contact, k):
 @njit(inline="always")
 def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts):
     """Step end: the fail-safe, then the audit. True: stop for Python."""
+    fresh, clean = False, False
     if contact is not None:
-        contact_resolve(contact, pos, vel, inv_mass, dt)
+        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt)
+        fresh = impulses == 0
+        clean = fresh and left == 0
     if audit is not None:
-        return audit_step(audit, pos, theta, t0, dt, fronts)
+        return audit_step(audit, pos, theta, t0, dt, fronts, fresh, clean)
     return False

@@ -5,7 +5,7 @@ The step loop tests each step itself (fe.touch: after each step, the candidate e
 pairs with the exact continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings`; the
 nodes move on straight lines over a step, as the central-difference update moves them), and
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
-phase with a skin, rebuilt when a node has moved more than half the skin, in the hub's frame,
+phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
 since the last build (distances do not change in a rigidly turning frame, so the spin
 itself never forces a rebuild), or when a held level went free. Which elements take part:
 
@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.crossing import candidate_pairs, pair_distances
-from spinweb_fe.fe.touch import LOG_PER_STEP, AuditKernel, audit_step
+from spinweb_fe.fe.crossing import candidate_pairs, pair_distances, sorted_in, swept_boxes
+from spinweb_fe.fe.touch import LOG_PER_STEP, REBUILD, AuditKernel, audit_step
 
 #: default broad-phase skin [m]
 SKIN = 0.5
@@ -67,7 +67,7 @@ class CrossingAudit:
 
     def __init__(self, model, skin: float = SKIN, touch: float = TOUCH, rows: int = 1):
         self.model = model
-        self.elem_nodes = np.ascontiguousarray(model.elements.nodes, dtype=np.int64)
+        self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.skin, self.touch = float(skin), float(touch)
         self.count, self.rebuilds = 0, 0
         self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
@@ -93,12 +93,14 @@ class CrossingAudit:
         code = self._code(pairs)
         # a pair that enters the list touching is left out; one left out stays out until
         # it is a skin apart (stacked layers drift and part slowly)
-        entering = ~np.isin(code, self._codes) if self._codes is not None else \
+        # (codes ascend: the broad phase lists pairs in code order; merges, not hashes)
+        entering = ~sorted_in(code, self._codes) if self._codes is not None else \
             np.ones(len(code), bool)
-        self.ignored = np.union1d(np.intersect1d(self.ignored, code[dist <= self.skin]),
-                                  code[entering & (dist <= self.touch)])
+        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.skin])]
+        new = code[entering & (dist <= self.touch)]
+        self.ignored = np.union1d(staying, new) if len(new) else staying
         self._codes = code
-        kept = ~np.isin(code, self.ignored)
+        kept = ~sorted_in(code, self.ignored)
         self.pairs = pairs[kept]
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
         theta = float(state.hub.angle[0])
@@ -108,9 +110,11 @@ class CrossingAudit:
         self._rows = rows or self._rows
         old = self.kernel
         pos0 = old.pos0 if old is not None else np.zeros_like(pos)
+        box = np.zeros((len(self.elem_nodes), 6))
+        swept_boxes(self.elem_nodes, active, pos, pos, box)
         self.kernel = AuditKernel(
             self.elem_nodes, self.pairs, self.ignored, active, ref,
-            np.array(state.coil.front, np.int64), pos0, self.skin,
+            np.array(state.coil.front, np.int64), pos0, box, self.skin,
             np.array([self.count], np.int64), np.zeros(LOG_ROOM), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64),
             np.zeros(self._rows), np.zeros(1))
@@ -128,7 +132,7 @@ class CrossingAudit:
             self.log["direction"].extend(k.log_sign[:n].tolist())
             k.n_log[0] = 0
         self.count = int(k.count[0])
-        if k.moved[0] > 0.5 * self.skin or not np.array_equal(k.fronts, state.coil.front):
+        if k.moved[0] > REBUILD * self.skin or not np.array_equal(k.fronts, state.coil.front):
             self.build(state)
 
     def step(self, pos0, state, t0: float, dt: float):
