@@ -156,3 +156,15 @@ def test_results_hold_the_crossings_and_the_verdict_judges_them(tmp_path):
     with h5py.File(tmp_path / "b" / "results.h5") as f:
         assert "crossings" not in f and "crossings" not in f["history"]
         assert f["verdict/tangled"].attrs["passed"] == -1
+
+
+def test_the_default_skin_follows_the_mesh():
+    """Without audit.skin the broad phase's skin is the smaller of 0.5 m and a fifth of
+    the median element (docs/performance.md: on a finer mesh a long skin lists too many
+    pairs of a stacked column); a given skin is kept."""
+    coarse = prepare(small_web()).model  # 5 m elements
+    fine = prepare(small_web(["web.mesh_width=1.0"])).model
+    assert CrossingAudit(coarse).skin == 0.5
+    assert CrossingAudit(fine).skin == pytest.approx(0.2 * np.median(fine.elements.rest_len))
+    assert CrossingAudit(fine).skin < 0.5
+    assert CrossingAudit(fine, 0.7).skin == 0.7

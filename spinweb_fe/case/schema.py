@@ -198,11 +198,12 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "audit": {
         "crossings": F("bool", False, None, "", "count every crossing of two cable elements "
-                       "(history crossings, table /crossings; the loop then runs a step per "
-                       "call) and check the linking numbers of the web's cells at the start, "
-                       "every frame and the end (/linking): docs/results.md"),
-        "skin": F("float", 0.5, "pos", "m", "crossings: the broad phase's skin (rebuilt "
-                  "when a node has moved half of it in the hub's frame)"),
+                       "(history crossings, table /crossings; tested in the step loop) and "
+                       "check the linking numbers of the web's cells at the start, every "
+                       "frame and the end (/linking): docs/results.md"),
+        "skin": F("float", None, "pos", "m", "crossings: the broad phase's skin (rebuilt "
+                  "when a node has moved 3/4 of it in the hub's frame; default the smaller "
+                  "of 0.5 m and a fifth of the median element: docs/performance.md)"),
         "touch": F("float", 1e-3, "nonneg", "m", "crossings: pairs closer than this when "
                    "they enter the list (stacked layers) are left out until they separate"),
     },

@@ -29,12 +29,26 @@ import numpy as np
 from spinweb_fe.fe.crossing import candidate_pairs, pair_distances, sorted_in, swept_boxes
 from spinweb_fe.fe.touch import LOG_PER_STEP, REBUILD, AuditKernel, audit_step
 
-#: default broad-phase skin [m]
+#: largest default broad-phase skin [m]
 SKIN = 0.5
+#: the default skin is at most this share of the median element's rest length
+SKIN_PER_ELEMENT = 0.2
 #: default distance [m] below which a pair entering the list is left out until it separates
 TOUCH = 1e-3
 #: room of the step loop's log (crossings logged between two calls at most)
 LOG_ROOM = 4096
+
+
+def default_skin(model) -> float:
+    """The broad phase's default skin [m]: the smaller of :data:`SKIN` and
+    :data:`SKIN_PER_ELEMENT` of the median element's rest length. The list's pairs grow
+    with the skin (on a stacked web, with the layers it spans) and its rebuilds with the
+    inverse; on the paper's web (2.5 m elements) 0.5 m costs least, on the 0.5 m
+    elements of the 80 400-element web 0.1 m or less (docs/performance.md)."""
+    rest = np.asarray(getattr(model.elements, "rest_len", ()))
+    if not len(rest):
+        return SKIN
+    return float(min(SKIN, SKIN_PER_ELEMENT * np.median(rest)))
 
 
 def held_nodes(model, state) -> np.ndarray:
@@ -65,10 +79,11 @@ class CrossingAudit:
 
     name = "crossings"
 
-    def __init__(self, model, skin: float = SKIN, touch: float = TOUCH, rows: int = 1):
+    def __init__(self, model, skin: float | None = None, touch: float = TOUCH, rows: int = 1):
         self.model = model
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
-        self.skin, self.touch = float(skin), float(touch)
+        self.skin = float(skin) if skin is not None else default_skin(model)
+        self.touch = float(touch)
         self.count, self.rebuilds = 0, 0
         self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
         self.pairs = np.zeros((0, 2), np.int64)
