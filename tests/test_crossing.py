@@ -171,3 +171,16 @@ def test_step_crossings_of_a_net_falling_through_a_line():
             want.append(e)
     assert crossed == sorted(want) and len(want) >= 5
     assert all(0.49 < out[0][i] < 0.51 for i in range(n))
+
+
+def test_closest_points_of_an_element_of_no_length():
+    """A folded web can hold an element whose ends coincide: its closest points are those
+    of a point (no division by its zero length)."""
+    from spinweb_fe.fe.crossing import closest_points
+
+    p = np.array([0.5, 1.0, 0.0])
+    s, t, d = closest_points(p, p, np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0]))
+    assert (s, t, d) == (0.0, 0.25, 1.0)
+    s, t, d = closest_points(np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0]), p, p)
+    assert (s, t, d) == (0.25, 0.0, 1.0)
+    assert closest_points(p, p, p + 1.0, p + 1.0)[2] == np.sqrt(3.0)

@@ -144,8 +144,8 @@ def test_an_audited_run_is_the_same_run():
 def test_results_hold_the_crossings_and_the_verdict_judges_them(tmp_path):
     """results.h5 of an audited run: the history column, the /crossings table with its
     units, and the verdict's 'tangled' criterion (n/a without the audit)."""
-    run_case(small_web(["audit.crossings=true", "output.frame_dt=0"]), tmp_path / "a",
-             progress=False)
+    run_case(small_web(["audit.crossings=true", "output.frame_dt=0",
+                        "perturbation.z_amplitude=1.0"]), tmp_path / "a", progress=False)
     run_case(small_web(["output.frame_dt=0"]), tmp_path / "b", progress=False)
     with h5py.File(tmp_path / "a" / "results.h5") as f:
         assert f["history/crossings"].attrs["units"] == "1"
@@ -168,3 +168,36 @@ def test_the_default_skin_follows_the_mesh():
     assert CrossingAudit(fine).skin == pytest.approx(0.2 * np.median(fine.elements.rest_len))
     assert CrossingAudit(fine).skin < 0.5
     assert CrossingAudit(fine, 0.7).skin == 0.7
+
+
+@pytest.mark.parametrize("sets, key, words", [
+    (["audit.crossings=true"], "audit.crossings", "cannot leave the plane"),
+    (["contact.cables=true"], "contact.cables", "no contact defined"),
+    (["contact.cables=true", "perturbation.z_amplitude=1.0", "contact.cable_radius=0.0"],
+     "contact.cable_radius", "must be > 0"),
+])
+def test_what_the_audit_and_the_contact_cannot_do_is_refused(tmp_path, sets, key, words):
+    """A planar scene (its cables cannot cross; a planar fold's layers coincide) and a
+    radius that is not positive are refused with one line naming the key, nothing
+    written; a radius above half the layer gap is refused on a layered fold (CLI, exit 2)."""
+    from spinweb_fe.errors import InputError
+
+    with pytest.raises(InputError) as err:
+        run_case(small_web(sets), tmp_path / "r", progress=False)
+    assert err.value.key == key and words in str(err.value)
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_radius_above_half_the_layer_gap_is_refused_at_the_command_line(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    case = Path(__file__).resolve().parents[1] / "cases" / "paper_feedback_web.toml"
+    out = subprocess.run([sys.executable, "-m", "spinweb_fe", "run", str(case), "-o",
+                          str(tmp_path / "r"), "--set", "contact.cables=true", "--set",
+                          "fold.layer_gap=0.003", "--set", "time.end=0.01"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1 and "more than half fold.layer_gap" in out.stderr
+    assert not (tmp_path / "r").exists()

@@ -341,13 +341,21 @@ def _closest(p00, p01, p02, p10, p11, p12, q00, q01, q02, q10, q11, q12):
     f = d20 * w0 + d21 * w1 + d22 * w2
     c = d10 * w0 + d11 * w1 + d12 * w2
     b = d10 * d20 + d11 * d21 + d12 * d22
-    den = a * e - b * b
-    s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
-    t = (b * s + f) / e
-    if t < 0.0:
-        t, s = 0.0, min(max(-c / a, 0.0), 1.0)
-    elif t > 1.0:
-        t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
+    if a <= 0.0 or e <= 0.0:  # an element of no length (a folded web's degenerate one)
+        if a <= 0.0 and e <= 0.0:
+            s, t = 0.0, 0.0
+        elif a <= 0.0:
+            s, t = 0.0, min(max(f / e, 0.0), 1.0)
+        else:
+            s, t = min(max(-c / a, 0.0), 1.0), 0.0
+    else:
+        den = a * e - b * b
+        s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-14 * a * e else 0.0
+        t = (b * s + f) / e
+        if t < 0.0:
+            t, s = 0.0, min(max(-c / a, 0.0), 1.0)
+        elif t > 1.0:
+            t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
     x0 = w0 + s * d10 - t * d20
     x1 = w1 + s * d11 - t * d21
     x2 = w2 + s * d12 - t * d22

@@ -33,7 +33,8 @@ from spinweb_fe.record.linking import LinkingMonitor
 from spinweb_fe.record.linking import write_group as write_linking
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
-from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
+from spinweb_fe.run.loop import (Schedule, choose_threads, records_vectors, requested_threads,
+                                 simulate)
 from spinweb_fe.run.terminal import Progress, StopSignals
 
 log = logging.getLogger(__name__)
@@ -129,6 +130,7 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
         with FolderLock(out_dir):
             with stop.immediate():  # set-up writes nothing: a signal stops it at once
                 mesh, model, control, state, dt = prepare(case)
+                check_touch(case, model, state)
                 if resume is not None:
                     state = _resumed_state(case, model, dt, resume)
                 threads = choose_threads(model, threads)
@@ -172,6 +174,32 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
              res.steps, res.loop_s, compile_s + res.compile_s,
              model.n_elems * (res.steps - step0) / max(res.loop_s, 1e-9))
     return res
+
+
+def check_touch(case, model, state) -> None:
+    """Refuse what the crossing audit and the cable contact cannot do (InputError): a scene
+    that cannot leave the plane (its cables cannot cross, and the layers of a planar fold
+    coincide, where contact is undefined), and a contact radius above half the layer gap
+    (stacked layers would start inside each other's reach; a radius that is not positive
+    the case's schema refuses)."""
+    touching, auditing = case.contact.cables, case.audit.crossings
+    if not (touching or auditing):
+        return
+    key = "contact.cables" if touching else "audit.crossings"
+    if not records_vectors(model, state):
+        why = ", and the coincident layers of a planar fold have no contact defined" \
+            if touching else ""
+        raise InputError(case.source, key, "the scene cannot leave the plane (fixed axis, no "
+                         "layer gap, no perturbation, no gravity gradient): its cables cannot "
+                         f"cross{why}; give fold.layer_gap or a perturbation")
+    if touching:
+        radius, gap = cable_radius(case, model), case.fold.layer_gap
+        given = case.contact.cable_radius is not None
+        name = "contact.cable_radius" + ("" if given else " (default sqrt(A / pi))")
+        if gap > 0.0 and radius > 0.5 * gap:
+            raise InputError(case.source, "contact.cable_radius",
+                             f"{name} {radius:.6g} m is more than half fold.layer_gap "
+                             f"({gap:.6g} m): stacked layers would start in contact")
 
 
 def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progress,
