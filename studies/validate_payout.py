@@ -3,7 +3,7 @@ the brake (``payout = "brake"``) of fe.payout against their analytical twins (th
 regime of analytic.payout, the stick and slip of analytic.braking), with the numbers quoted
 by docs/validation.md, section 0.5.
 
-    .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,web,explore,stiff]
+    .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,eq7brake,web,explore,stiff]
                                                  [--cache DIR]
 
 Studies (each writes ``benchmarks/results/validation/payout_<study>.json``, most a figure
@@ -21,7 +21,7 @@ Studies (each writes ``benchmarks/results/validation/payout_<study>.json``, most
   and 20 m/s, and the bow of the heavy string in the FE frames;
 - ``web``: the paper's web reeled at 10 m/s (cases/paper_payout_web.toml): the energy
   balance with the reel's work, the re-coil checks, the four panels against the analytical
-  arm (the brake is refused on webs: docs/solver.md);
+  arm;
 - ``explore``: the analytical brake only: how long a constant force (or a force table)
   slips before the arm comes back to its tangent;
 - ``stiff``: the reel at 10 m/s over 0-1 s and the 30 kN brake with the case's 1000x
@@ -487,6 +487,27 @@ def eq7_study():
     dump("eq7", {"case": str(EQ7_STIFF.relative_to(ROOT)), "runs": recs})
 
 
+def eq7_brake_study():
+    """Stiff Eq. 7 tethers braked at 30 and 38 kN (from t = 0 and restarted from the FE)."""
+    recs, curves, marks, extra = {}, [], [], []
+    for force, colour in zip(BRAKE_FORCES, ("C0", "C3")):
+        rec, fe, an, cs = brake_run(EQ7_STIFF, force, [], f"brake_eq7_{force:g}")
+        rec["restarted_from_fe"], r = restarts(cs, fe)
+        extra.append((f"analytic {force / 1e3:g} kN, restarted from the FE at 5 ms", r, colour))
+        recs[f"brake_{force / 1e3:g}kN"] = rec
+        report(f"Eq. 7 brake {force / 1e3:g} kN (0-{rec['an_end_s']:.3f} s)", rec)
+        print(f"   work {rec['work']['rel']:.2e}, FE tangent {rec['fe_tangent_s']}, FE L end "
+              f"{rec['fe_L_end_m'][0]:.1f} m", flush=True)
+        for k, v in rec["restarted_from_fe"].items():
+            print(f"   restarted {k}: {v}", flush=True)
+        curves.append((f"{force / 1e3:g} kN", fe, an, colour))
+        marks.append(rec["an_end_s"])
+    plot_device(curves, IMG / "payout_eq7_brake.png", "brake at D, stiff Eq. 7 tethers (1000x "
+                "Zylon): FE (solid) vs analytical stick/slip (dashed; dotted: restarted from "
+                "the FE at 5 ms)", t_max=0.2, t_marks=marks, extra=extra)
+    dump("eq7_brake", {"case": str(EQ7_STIFF.relative_to(ROOT)), "runs": recs})
+
+
 # --------------------------------------------------------------------------- web
 
 def recoil_checks(h, mesh, r0, level, t_a, t_b, paying):
@@ -664,8 +685,9 @@ def held_study():
     dump("brake_held", {"case": str(LIGHT.relative_to(ROOT)), "sets": [E_100X], "runs": recs})
 
 
-STUDIES = {"reel": reel_study, "brake": brake_study, "held": held_study, "eq7": eq7_study, "web": web_study,
-           "explore": explore_study, "stiff": stiff_study}
+STUDIES = {"reel": reel_study, "brake": brake_study, "held": held_study, "eq7": eq7_study,
+           "eq7brake": eq7_brake_study, "web": web_study, "explore": explore_study,
+           "stiff": stiff_study}
 
 
 def main(argv=None) -> int:

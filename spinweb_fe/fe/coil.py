@@ -142,7 +142,9 @@ class CoilState(NamedTuple):
     ``dev_x`` (n_arms, 3) [m], D in the world now; ``dev_work`` [J], the device's work so
     far (negative: energy it took); ``dev_tension`` [N], the line tension at D;
     ``dev_speed`` [m/s], the payout speed of the last step; and ``dev_moment`` (3,) [N m],
-    the moment that carries the device forces from the held front nodes to D."""
+    the moment that carries the device forces from the held front nodes to D;
+    ``dev_friction`` [J], a brake's N x summed over its slips (the least it must have
+    dissipated)."""
 
     front: np.ndarray
     bundled: np.ndarray
@@ -154,6 +156,7 @@ class CoilState(NamedTuple):
     dev_tension: np.ndarray
     dev_speed: np.ndarray
     dev_moment: np.ndarray
+    dev_friction: np.ndarray
 
 
 def no_coil(n_arms: int = 0) -> Coil:
@@ -175,7 +178,7 @@ def coil_start(coil: Coil) -> CoilState:
     z = np.zeros(n_arms)
     return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0),
                      coil.arm_end.copy(), z.copy(), np.zeros((n_arms, 3)), np.zeros((n_arms, 3)),
-                     z.copy(), z.copy(), z.copy(), np.zeros(3))
+                     z.copy(), z.copy(), z.copy(), np.zeros(3), z.copy())
 
 
 @njit(cache=True)
