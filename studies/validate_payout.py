@@ -399,6 +399,19 @@ def restarts(cs, fe, times=(0.005, 0.01, 0.02)):
             "work_fe_J": float(w_fe), "work_an_J": float(w_an),
             "work_rel": float((w_fe - w_an) / abs(w_an)),
             "L_end_an_m": float(r["arm_length"][-1]), "L_end_fe_m": float(fl[-1])}
+        # the same to 2 ms before the analytical end (its line runs away at the tangent:
+        # the payout speed diverges, and with it the last rows' work)
+        m = int(np.searchsorted(r["time"], r["end_s"] - 0.002))
+        if m > 1:
+            w_fe2 = fe["brake_work"][i0 + m - 1].sum() - fe["brake_work"][i0].sum()
+            w_an2 = r["energy"][m - 1] - r["energy"][0]
+            out[f"from_{ts:g}s"]["to_2ms_before_end"] = {
+                "end_s": float(r["time"][m - 1]),
+                "L_rms_over_H": float(np.sqrt(np.mean(dL[:m] ** 2)) / H),
+                "phi_rms_rad": float(np.sqrt(np.mean(dphi[:m] ** 2))),
+                "hub_rms_over_omega0": float(np.sqrt(np.mean(dw[:m] ** 2)) / cs.initial.omega),
+                "work_fe_J": float(w_fe2), "work_an_J": float(w_an2),
+                "work_rel": float((w_fe2 - w_an2) / abs(w_an2))}
         if first is None:
             r["brake_work"] = fe["brake_work"][i0, 0] + (r["energy"] - r["energy"][0]) \
                 / cs.tethers.count
