@@ -3,7 +3,7 @@ the brake (``payout = "brake"``) of fe.payout against their analytical twins (th
 regime of analytic.payout, the stick and slip of analytic.braking), with the numbers quoted
 by docs/validation.md, section 0.5.
 
-    .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,eq7brake,web,explore,stiff]
+    .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,eq7brake,web,webbrake,explore,stiff]
                                                  [--cache DIR]
 
 Studies (each writes ``benchmarks/results/validation/payout_<study>.json``, most a figure
@@ -67,6 +67,7 @@ IMG = ROOT / "docs" / "img"
 LIGHT = CASES / "validation" / "free_arms_stiff_light.toml"
 EQ7_STIFF = CASES / "paper_free_arms_eq7_stiff.toml"
 WEB_REEL = CASES / "paper_payout_web.toml"
+WEB_BRAKE = CASES / "paper_brake_web.toml"
 #: the point-mass tethers' cable: 100x Zylon (E A = 1.845e8 N), see the ``stiff`` study
 E_100X = "cable.youngs_modulus=180e11"
 REEL_RATES = (10.0, 20.0)
@@ -590,6 +591,45 @@ def web_study():
     dump("web", rec)
 
 
+def web_brake_study():
+    """The paper's web through a 30 kN brake, against the free web and the analytical brake
+    of the paper's arm: what a brake alone does to a web."""
+    cs = load(WEB_BRAKE)
+    fe, info, mesh, _ = run_fe(cs, "web_brake")
+    free, _, _, _ = run_fe(load(CASES / "paper_free_web.toml"), "web_free")
+    an, res = analytic_twin(cs)
+    _, model = prepare(cs)[:2]
+    coil = model.coil
+    level = float(np.max(np.abs(np.diff(coil.level_coord[coil.arm_ptr[0]:coil.arm_ptr[1]]))))
+    front = fe["payout_front"][:, 0]
+    i_out = int(np.argmax(front <= float(front.min()) + 1e-9))
+    t = fe["time"]
+    paid = 50.0 - fe["payout_front"]
+    rec = {"case": str(WEB_BRAKE.relative_to(ROOT)), "wall_s": info["wall_s"], "dt": info["dt"],
+           "force_N": cs.stowage.brake_force, "KE0_J": float(fe["kinetic_energy"][0]),
+           "balance_over_KE0": balance(fe), "t_coil_out_s": float(t[i_out]),
+           "free_t_coil_out_s": float(free["time"][int(np.argmax(
+               free["payout_front"][:, 0] <= float(free["payout_front"][:, 0].min()) + 1e-9))]),
+           "brake_work_J": float(fe["brake_work"][-1].sum()),
+           "friction_bound_J": float(-cs.stowage.brake_force * paid[-1].sum()),
+           "work_increase_rows": int((np.diff(fe["brake_work"], axis=0) > 0).sum()),
+           "hub_omega_min": float(fe["hub_omega"].min()),
+           "hub_omega_min_at_s": float(t[np.argmin(fe["hub_omega"])]),
+           "free_hub_omega_min": float(free["hub_omega"].min()),
+           "an_end_s": float(an["time"][-1]), "an_stopped": res.stopped,
+           "an_brake_work_J": float(an["brake_work"][-1].sum()),
+           "recoil_after": recoil_checks(fe, mesh, cs.hub.radius, level, float(t[i_out]),
+                                         float(t[-1]), False),
+           "L_end_m": [float(x) for x in fe["arm_length"][-1]]}
+    print(f"web brake: {rec}", flush=True)
+    plot_histories([(fe, "FE web, brake 30 kN", "-"), (free, "FE web, free payout", ":"),
+                    (an, "analytic brake, the paper's arm (Eq. 7)", "k--")],
+                   IMG / "payout_web_brake.png", t_max=cs.time.end,
+                   title="paper web (Zylon), brake at D at 30 kN from 8 pi: the line runs "
+                         "away and the web re-coils as the free web does")
+    dump("web_brake", rec)
+
+
 # --------------------------------------------------------------------------- explore
 
 def explore_study():
@@ -699,7 +739,8 @@ def held_study():
 
 
 STUDIES = {"reel": reel_study, "brake": brake_study, "held": held_study, "eq7": eq7_study,
-           "eq7brake": eq7_brake_study, "web": web_study, "explore": explore_study,
+           "eq7brake": eq7_brake_study, "web": web_study,
+           "webbrake": web_brake_study, "explore": explore_study,
            "stiff": stiff_study}
 
 
