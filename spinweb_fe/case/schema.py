@@ -195,6 +195,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "stiffness": F("float", 0.25, "pos", "", "cables: the penalty k = stiffness m / dt^2 "
                        "(m the pair's effective mass; 0.25: the contact spring's critical "
                        "step is 4 dt)"),
+        "friction": F("float", 0.0, "nonneg", "", "cables: Coulomb friction coefficient "
+                      "between touching cables (impulses at the step's end that slow the "
+                      "sliding at most to rest, booked as cable_contact_dissipation); 0: "
+                      "frictionless"),
     },
     "audit": {
         "crossings": F("bool", False, None, "", "count every crossing of two cable elements "

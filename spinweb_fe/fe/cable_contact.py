@@ -24,6 +24,18 @@ node, with kappa = 0.25), so the radius must be about 1.5 v dt for elements clos
 (tests/test_cable_contact.py: 200 m/s at dt = 1e-4 s passes through at r = 2.5 cm, not at
 3 cm): 1.4 mm at 20 m/s and 1.4 cm at 200 m/s on the paper web's step (4.6e-5 s). The
 crossing audit, which runs with the contact, counts the crossings that still happen.
+
+Friction (``[contact] friction`` mu, Coulomb): at the step's end every pair that was in
+contact at its start gets a tangential impulse at its two closest points (the step's
+normal force F from above), opposite to their relative sliding velocity v_t (of
+v_{n+1/2}) and at most what stops it there: j = min(mu F dt, |v_t| / w), w the pair's
+inverse mass at those points (sum of the squared weights over the nodes' masses), equal
+and opposite on the two elements (x_{n+1} = x_n + dt v_{n+1/2} follows). The kinetic
+energy it takes is booked with the fail-safe's as ``cable_contact_dissipation``; it is
+never negative (j <= |v_t| / w: the sliding is slowed at most to rest). The two points are
+up to twice the radius apart along the normal, so the pair of impulses makes a couple of
+that arm: angular momentum changes by at most 2 r j per contact (linear momentum is kept
+to round-off).
 """
 
 from __future__ import annotations
@@ -58,7 +70,7 @@ def _box_gap(pos, a, b, c, d):
 
 @njit(cache=True)
 def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share,
-                   box=None):
+                   box=None, hold=None):
     """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
     which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
     radius, or less for a pair that entered the list closer: it is raised to the largest
@@ -69,9 +81,14 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
     step. ``box`` (m, 6), if given: boxes that hold every element at ``pos`` (the swept
     boxes of the step that led here, fe.crossing.swept_boxes), which rule out the pairs
-    farther apart than twice the radius (else the pairs' own boxes at ``pos``). Returns (stored energy [J], pairs in contact, deepest penetration [m])."""
+    farther apart than twice the radius (else the pairs' own boxes at ``pos``). ``hold``
+    (P, 3), if given: each pair's normal force [N] (0: not in contact) and its closest
+    points' s and t, for the friction. Returns (stored energy [J], pairs in contact,
+    deepest penetration [m])."""
     force[:] = 0.0
     share[:] = 0
+    if hold is not None:
+        hold[:, 0] = 0.0
     reach_max = 2.0 * radius
     energy, count, deepest = 0.0, 0, 0.0
     # first the pairs' closest points (NaN: a node not free; infinity: apart by their
@@ -126,6 +143,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
             force[b, j] += s * fj
             force[c, j] -= (1.0 - t) * fj
             force[d, j] -= t * fj
+        if hold is not None:
+            hold[p, 0], hold[p, 1], hold[p, 2] = k * delta, s, t
         energy += 0.5 * k * delta * delta
         count += 1
         deepest = max(deepest, delta)
@@ -145,17 +164,20 @@ def kick(vel, force, inv_mass, dt):
 class ContactKernel(NamedTuple):
     """The cable-cable contact as the step loop sees it (:meth:`CableContact.kernel`).
 
-    elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; force
+    elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; hold
+    (P, 3): each pair's normal force [N] and closest points at the step's start; force
     (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
     elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
-    [m] (the fail-safe's), rounds; stats (7,): stored energy [J], pairs in contact, deepest
-    penetration [m] now and over the run, energy the fail-safe took [J], its impulses,
-    crossings it left; rows (R, 2): stored energy and dissipation at each history row [J].
+    [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (8,): stored energy
+    [J], pairs in contact, deepest penetration [m] now and over the run, energy the
+    fail-safe took [J], its impulses, crossings it left, energy the friction took [J]; rows
+    (R, 2): stored energy and dissipation (fail-safe and friction) at each history row [J].
     """
 
     elem_nodes: np.ndarray
     pairs: np.ndarray
     reach: np.ndarray
+    hold: np.ndarray
     force: np.ndarray
     share: np.ndarray
     pos0: np.ndarray
@@ -165,12 +187,13 @@ class ContactKernel(NamedTuple):
     kappa: float
     margin: float
     rounds: int
+    mu: float
     stats: np.ndarray
     rows: np.ndarray
 
 
 #: ContactKernel.stats slots
-ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT = range(7)
+ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION = range(8)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -179,7 +202,7 @@ def contact_push(ck, pos, vel, inv_mass, dt):
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,
-                                                    ck.force, ck.share, ck.box)
+                                                    ck.force, ck.share, ck.box, ck.hold)
     st[IN_CONTACT] = count
     st[DEEPEST_RUN] = max(st[DEEPEST_RUN], st[DEEPEST])
     if count:
@@ -190,7 +213,11 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 def contact_resolve(ck, pos, vel, inv_mass, dt):
     """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
-    pass left (both 0: no pair of the list crossed in the step)."""
+    pass left (both 0: no pair of the list crossed in the step). The friction's impulses
+    first (``ck.mu`` > 0)."""
+    if ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0:
+        ck.stats[FRICTION] += friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos,
+                                                vel, inv_mass, dt, ck.mu)
     swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
     taken, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, ck.box)
@@ -204,7 +231,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt):
 def contact_row(ck, k):
     """Row ``k`` of the call: the stored energy and the fail-safe's dissipation so far."""
     ck.rows[k, 0] = ck.stats[ENERGY]
-    ck.rows[k, 1] = ck.stats[TAKEN]
+    ck.rows[k, 1] = ck.stats[TAKEN] + ck.stats[FRICTION]
 
 
 class CableContact:
@@ -212,12 +239,12 @@ class CableContact:
     distance, and the step loop's view of it (:meth:`kernel`: a :class:`ContactKernel`, whose
     ``stats`` say what the last step found and what the fail-safe did so far)."""
 
-    def __init__(self, model, radius: float, kappa: float = KAPPA):
-        self.radius, self.kappa = float(radius), float(kappa)
+    def __init__(self, model, radius: float, kappa: float = KAPPA, friction: float = 0.0):
+        self.radius, self.kappa, self.mu = float(radius), float(kappa), float(friction)
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.force = np.zeros((model.n_nodes, 3))
         self.share = np.zeros(model.n_nodes, np.int64)
-        self.stats = np.zeros(7)
+        self.stats = np.zeros(8)
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
 
     def sync(self, codes, dist):
@@ -238,10 +265,11 @@ class CableContact:
         x_n it shares), with room for ``rows`` history rows a call."""
         if audit.pairs is not getattr(self, "_pairs", None):  # the list was rebuilt
             self._pairs = audit.pairs
-            self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach, self.force,
+            self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
+                                         np.zeros((len(audit.pairs), 3)), self.force,
                                          self.share, audit.pos0, audit.active, audit.box,
                                          self.radius, self.kappa,
-                                         MARGIN * self.radius, ROUNDS, self.stats,
+                                         MARGIN * self.radius, ROUNDS, self.mu, self.stats,
                                          np.zeros((rows, 2)))
         return self._kernel
 
@@ -252,8 +280,13 @@ class CableContact:
 
     @property
     def dissipated(self) -> float:
-        """Kinetic energy the fail-safe's impulses took so far [J]."""
-        return float(self.stats[TAKEN])
+        """Kinetic energy the fail-safe's and the friction's impulses took so far [J]."""
+        return float(self.stats[TAKEN] + self.stats[FRICTION])
+
+    @property
+    def friction_dissipated(self) -> float:
+        """Kinetic energy the friction's impulses took so far [J]."""
+        return float(self.stats[FRICTION])
 
     @property
     def deepest_run(self) -> float:
@@ -363,3 +396,60 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             break
     return taken, impulses, left
 
+
+
+@njit(cache=True)
+def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu):
+    """Coulomb friction of the pairs in contact at the step's start (``hold``: normal force
+    [N], s, t; module docstring): a tangential impulse at their closest points against the
+    relative sliding velocity of ``vel`` (v_{n+1/2}), at most mu F dt and at most what
+    stops the sliding; the end positions follow (x_{n+1} = x_n + dt v_{n+1/2}). Returns the
+    kinetic energy it took [J] (>= 0)."""
+    taken = 0.0
+    for p in range(pairs.shape[0]):
+        fn = hold[p, 0]
+        if fn <= 0.0:
+            continue
+        s, t = hold[p, 1], hold[p, 2]
+        e, g = pairs[p, 0], pairs[p, 1]
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+        n0, n1, n2 = 0.0, 0.0, 0.0  # the push's direction, from x_n
+        for k in range(3):
+            nk = (pos0[a, k] + s * (pos0[b, k] - pos0[a, k])
+                  - pos0[c, k] - t * (pos0[d, k] - pos0[c, k]))
+            if k == 0:
+                n0 = nk
+            elif k == 1:
+                n1 = nk
+            else:
+                n2 = nk
+        size = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if size == 0.0:
+            continue
+        n0, n1, n2 = n0 / size, n1 / size, n2 / size
+        r0 = (1.0 - s) * vel[a, 0] + s * vel[b, 0] - (1.0 - t) * vel[c, 0] - t * vel[d, 0]
+        r1 = (1.0 - s) * vel[a, 1] + s * vel[b, 1] - (1.0 - t) * vel[c, 1] - t * vel[d, 1]
+        r2 = (1.0 - s) * vel[a, 2] + s * vel[b, 2] - (1.0 - t) * vel[c, 2] - t * vel[d, 2]
+        vn = r0 * n0 + r1 * n1 + r2 * n2
+        r0, r1, r2 = r0 - vn * n0, r1 - vn * n1, r2 - vn * n2
+        slide = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        if slide == 0.0:
+            continue
+        w = (1.0 - s) ** 2 * inv_mass[a] + s * s * inv_mass[b] \
+            + (1.0 - t) ** 2 * inv_mass[c] + t * t * inv_mass[d]
+        j = min(mu * fn * dt, slide / w)
+        u0, u1, u2 = r0 / slide, r1 / slide, r2 / slide
+        for i, f in ((a, 1.0 - s), (b, s), (c, -(1.0 - t)), (d, -t)):
+            if inv_mass[i] == 0.0:
+                continue
+            m = 1.0 / inv_mass[i]
+            ke0 = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+            h = -f * j * inv_mass[i]
+            vel[i, 0] += h * u0
+            vel[i, 1] += h * u1
+            vel[i, 2] += h * u2
+            for k in range(3):
+                pos1[i, k] = pos0[i, k] + dt * vel[i, k]
+            taken += ke0 - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+    return taken

@@ -223,7 +223,8 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     audit, touching = case.audit, case.contact.cables
     crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings or touching \
         else None
-    contact = CableContact(model, cable_radius(case, model), case.contact.stiffness) \
+    contact = CableContact(model, cable_radius(case, model), case.contact.stiffness,
+                           case.contact.friction) \
         if touching else None
     linking = LinkingMonitor(model.mesh, state) if audit.crossings else None
     recorders += [linking] if linking is not None else []
