@@ -260,9 +260,9 @@ MUTANTS = (
            'Term("contact_dissipation", 1, "J",', 'Term("contact_dissipation", -1, "J",',
            "energy balance subtracts the contact dissipation (its sign in fe.layout.ENERGY)",
            ("tests/test_hub.py", "tests/test_mutation_guards.py")),
-    # ---- payout devices (fe/payout.py, fe/line.py, the axis's device phase) and their
+    # ---- payout devices (fe/payout.py, fe/brake.py, fe/line.py, the axis's device phase) and their
     #      analytical twins (issue #24)
-    Mutant("reel_ahead_of_law", "spinweb_fe/fe/payout.py",
+    Mutant("reel_ahead_of_law", "spinweb_fe/fe/brake.py",
            "return min(cs.s_dev[k], coil.arm_end[k] - law_value(coil.law_t, coil.law_v, t))",
            "return min(cs.s_dev[k], coil.arm_end[k] - 1.01 * law_value(coil.law_t, coil.law_v, "
            "t))", "the reel lets out 1 % more than its law", PAYOUT_TESTS),
@@ -276,11 +276,11 @@ MUTANTS = (
     Mutant("device_moment_sign", "spinweb_fe/fe/step.py",
            "tau += cs.dev_moment[2]", "tau -= cs.dev_moment[2]",
            "the device's moment on the fixed axis with the wrong sign", PAYOUT_TESTS),
-    Mutant("brake_slips_twice_as_far", "spinweb_fe/fe/payout.py",
+    Mutant("brake_slips_twice_as_far", "spinweb_fe/fe/brake.py",
            "        x = _dissipative(coil, cs, k, lev, elems, mv, pose, force, x, dt)",
            "        x = 2.0 * _dissipative(coil, cs, k, lev, elems, mv, pose, force, x, dt)",
            "the brake's return mapping slips twice as far as the force allows", PAYOUT_TESTS),
-    Mutant("brake_dissipation_unlimited", "spinweb_fe/fe/payout.py",
+    Mutant("brake_dissipation_unlimited", "spinweb_fe/fe/brake.py",
            "        x = _dissipative(coil, cs, k, lev, elems, mv, pose, force, x, dt)",
            "        x = x",
            "the brake's slip not limited by its dissipation (a web's brake supplies energy)",

@@ -110,7 +110,7 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     st = State(pos, rng.standard_normal((7, 3)), rng.random(7), rng.random(7),
                HubState(one(), one(), one()),
                CoilState(np.array([3, 0], np.int64), np.array([True, False]),
-                         *(rng.standard_normal(sh) for sh in (2, 2, (2, 3), (2, 3), 2, 2, 2, 3))),
+                         *(rng.standard_normal(sh) for sh in (2, 2, (2, 3), (2, 3), 2, 2, 2, 3, 2))),
                rng.standard_normal(4), np.array([12345], np.int64), one(),
                StrengthState(np.array([True, False, True]), rng.standard_normal(3), one(),
                              np.array([2], np.int64)),

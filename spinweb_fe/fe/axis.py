@@ -25,7 +25,8 @@ from spinweb_fe.fe.coil import (gather_bundles, held_moment, place_held, place_l
 from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.line import line_energy, line_pairing
-from spinweb_fe.fe.payout import device_target, locate_devices, move_line, rest_ref
+from spinweb_fe.fe.brake import device_target
+from spinweb_fe.fe.payout import locate_devices, move_line, rest_ref
 from spinweb_fe.fe.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 

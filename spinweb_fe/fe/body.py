@@ -24,7 +24,8 @@ from numba import njit
 
 from spinweb_fe.fe.coil import gather_bundles, release_fronts, scatter_bundles
 from spinweb_fe.fe.line import line_energy, line_pairing
-from spinweb_fe.fe.payout import device_target, locate_devices, move_line
+from spinweb_fe.fe.brake import device_target
+from spinweb_fe.fe.payout import locate_devices, move_line
 from spinweb_fe.fe.contact import contact_free
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
