@@ -165,7 +165,9 @@ class ContactKernel(NamedTuple):
     """The cable-cable contact as the step loop sees it (:meth:`CableContact.kernel`).
 
     elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; hold
-    (P, 3): each pair's normal force [N] and closest points at the step's start; force
+    (P, 3): each pair's normal force [N] and closest points at the step's start; vel0,
+    vel1, vel2 (n, 3) [m/s]: v_{n-1/2} at the step's start and scratch for the impulses'
+    work; force
     (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
     elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
     [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (8,): stored energy
@@ -178,6 +180,9 @@ class ContactKernel(NamedTuple):
     pairs: np.ndarray
     reach: np.ndarray
     hold: np.ndarray
+    vel0: np.ndarray
+    vel1: np.ndarray
+    vel2: np.ndarray
     force: np.ndarray
     share: np.ndarray
     pos0: np.ndarray
@@ -198,7 +203,9 @@ ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION = rang
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_push(ck, pos, vel, inv_mass, dt):
-    """The penalty forces at x_n and their kick of v_{n-1/2}."""
+    """The penalty forces at x_n and their kick of v_{n-1/2} (kept first: the impulses'
+    work at the step's end is paired with it)."""
+    ck.vel0[:] = vel
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,
@@ -215,13 +222,24 @@ def contact_resolve(ck, pos, vel, inv_mass, dt):
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
     first (``ck.mu`` > 0)."""
-    if ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0:
-        ck.stats[FRICTION] += friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos,
-                                                vel, inv_mass, dt, ck.mu)
+    ck.vel1[:] = vel
+    rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0
+    if rubbed:
+        friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
+                          ck.mu)
+        ck.vel2[:] = vel
     swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
-    taken, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.box)
-    ck.stats[TAKEN] += taken
+    _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass, dt,
+                                   ck.margin, ck.rounds, ck.box)
+    if rubbed or n > 0:
+        # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
+        # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
+        # m dv / dt in the step's kick would), not the half-step kinetic energy's change,
+        # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
+        total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass)
+        rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
+        ck.stats[FRICTION] += rub
+        ck.stats[TAKEN] += total - rub
     ck.stats[IMPULSES] += n
     ck.stats[LEFT] += left
     return n, left
@@ -243,6 +261,7 @@ class CableContact:
         self.radius, self.kappa, self.mu = float(radius), float(kappa), float(friction)
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.force = np.zeros((model.n_nodes, 3))
+        self.vel0, self.vel1, self.vel2 = (np.zeros((model.n_nodes, 3)) for _ in range(3))
         self.share = np.zeros(model.n_nodes, np.int64)
         self.stats = np.zeros(8)
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
@@ -266,7 +285,8 @@ class CableContact:
         if audit.pairs is not getattr(self, "_pairs", None):  # the list was rebuilt
             self._pairs = audit.pairs
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
-                                         np.zeros((len(audit.pairs), 3)), self.force,
+                                         np.zeros((len(audit.pairs), 3)), self.vel0,
+                                         self.vel1, self.vel2, self.force,
                                          self.share, audit.pos0, audit.active, audit.box,
                                          self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
@@ -453,3 +473,21 @@ def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu
                 pos1[i, k] = pos0[i, k] + dt * vel[i, k]
             taken += ke0 - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
     return taken
+
+
+@njit(cache=True)
+def impulse_work(before, after, start, inv_mass):
+    """sum m (after - before) . (start + after) / 2 over the free nodes [J]: the work of the
+    impulses that changed v_{n+1/2} from ``before`` to ``after``, paired with v_{n-1/2}
+    (``start``) as the leapfrog pairs a force's work."""
+    w = 0.0
+    for i in range(before.shape[0]):
+        if inv_mass[i] == 0.0:
+            continue
+        acc = 0.0
+        for k in range(3):
+            dv = after[i, k] - before[i, k]
+            if dv != 0.0:
+                acc += dv * (start[i, k] + after[i, k])
+        w += 0.5 * acc / inv_mass[i]
+    return w
