@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.cable_contact import KAPPA, contact_forces, friction_impulses
+from spinweb_fe.fe.cable_contact import KAPPA, contact_forces
+from spinweb_fe.fe.impulses import friction_impulses
 
 PAIR = np.array([[0, 1]], np.int64)
 ELEMS = np.array([[0, 1], [2, 3]], np.int64)
@@ -141,7 +142,7 @@ def test_the_impulses_work_is_the_leapfrogs_pairing():
     work m (a - b) . (v_{n-1/2} + a) / 2 (the midpoint rule the step books a force with);
     with v_{n-1/2} = b (no other force in the step) that is the kinetic energy's change;
     held nodes (inverse mass 0) count nothing."""
-    from spinweb_fe.fe.cable_contact import impulse_work
+    from spinweb_fe.fe.impulses import impulse_work
 
     rng = np.random.default_rng(3)
     before, after, start = (rng.standard_normal((5, 3)) for _ in range(3))

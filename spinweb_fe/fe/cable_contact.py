@@ -47,6 +47,7 @@ from numba import njit
 
 from spinweb_fe.fe.crossing import (apart, boxes_apart, closest_nodes, closest_points,
                                     pair_crossings, swept_boxes)
+from spinweb_fe.fe.impulses import axial_impulse, friction_impulses, impulse_work
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
 KAPPA = 0.25
@@ -167,7 +168,8 @@ class ContactKernel(NamedTuple):
     elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; hold
     (P, 3): each pair's normal force [N] and closest points at the step's start; vel0,
     vel1, vel2 (n, 3) [m/s]: v_{n-1/2} at the step's start and scratch for the impulses'
-    work; force
+    work; spin (2,): a fixed axis's rate at the step's start [rad/s] and the change the
+    fail-safe's reaction made at its end; force
     (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
     elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
     [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (8,): stored energy
@@ -183,6 +185,7 @@ class ContactKernel(NamedTuple):
     vel0: np.ndarray
     vel1: np.ndarray
     vel2: np.ndarray
+    spin: np.ndarray
     force: np.ndarray
     share: np.ndarray
     pos0: np.ndarray
@@ -217,11 +220,15 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def contact_resolve(ck, pos, vel, inv_mass, dt):
+def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None):
     """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
-    first (``ck.mu`` > 0)."""
+    first (``ck.mu`` > 0). ``rate``, ``inertia`` ((1,) arrays, a fixed axis's rate
+    omega_{n+1/2} and effective inertia): the hub takes the angular impulse about its axis
+    that the impulses gave the free nodes, so that nodes held on or tied to it (which take
+    no share of an impulse) push back through it (``ck.spin[1]``: the rate's change; None,
+    a free hub: nothing)."""
     ck.vel1[:] = vel
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0
     if rubbed:
@@ -237,6 +244,12 @@ def contact_resolve(ck, pos, vel, inv_mass, dt):
         # m dv / dt in the step's kick would), not the half-step kinetic energy's change,
         # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
         total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass)
+        if rate is not None:
+            dw = -axial_impulse(ck.pos0, ck.vel1, vel, inv_mass) / inertia[0]
+            # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
+            total -= inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
+            rate[0] += dw
+            ck.spin[1] = dw
         rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
         ck.stats[FRICTION] += rub
         ck.stats[TAKEN] += total - rub
@@ -286,7 +299,7 @@ class CableContact:
             self._pairs = audit.pairs
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
-                                         self.vel1, self.vel2, self.force,
+                                         self.vel1, self.vel2, np.zeros(2), self.force,
                                          self.share, audit.pos0, audit.active, audit.box,
                                          self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
@@ -415,79 +428,3 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if left == 0:
             break
     return taken, impulses, left
-
-
-
-@njit(cache=True)
-def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu):
-    """Coulomb friction of the pairs in contact at the step's start (``hold``: normal force
-    [N], s, t; module docstring): a tangential impulse at their closest points against the
-    relative sliding velocity of ``vel`` (v_{n+1/2}), at most mu F dt and at most what
-    stops the sliding; the end positions follow (x_{n+1} = x_n + dt v_{n+1/2}). Returns the
-    kinetic energy it took [J] (>= 0)."""
-    taken = 0.0
-    for p in range(pairs.shape[0]):
-        fn = hold[p, 0]
-        if fn <= 0.0:
-            continue
-        s, t = hold[p, 1], hold[p, 2]
-        e, g = pairs[p, 0], pairs[p, 1]
-        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
-        c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-        n0, n1, n2 = 0.0, 0.0, 0.0  # the push's direction, from x_n
-        for k in range(3):
-            nk = (pos0[a, k] + s * (pos0[b, k] - pos0[a, k])
-                  - pos0[c, k] - t * (pos0[d, k] - pos0[c, k]))
-            if k == 0:
-                n0 = nk
-            elif k == 1:
-                n1 = nk
-            else:
-                n2 = nk
-        size = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-        if size == 0.0:
-            continue
-        n0, n1, n2 = n0 / size, n1 / size, n2 / size
-        r0 = (1.0 - s) * vel[a, 0] + s * vel[b, 0] - (1.0 - t) * vel[c, 0] - t * vel[d, 0]
-        r1 = (1.0 - s) * vel[a, 1] + s * vel[b, 1] - (1.0 - t) * vel[c, 1] - t * vel[d, 1]
-        r2 = (1.0 - s) * vel[a, 2] + s * vel[b, 2] - (1.0 - t) * vel[c, 2] - t * vel[d, 2]
-        vn = r0 * n0 + r1 * n1 + r2 * n2
-        r0, r1, r2 = r0 - vn * n0, r1 - vn * n1, r2 - vn * n2
-        slide = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-        if slide == 0.0:
-            continue
-        w = (1.0 - s) ** 2 * inv_mass[a] + s * s * inv_mass[b] \
-            + (1.0 - t) ** 2 * inv_mass[c] + t * t * inv_mass[d]
-        j = min(mu * fn * dt, slide / w)
-        u0, u1, u2 = r0 / slide, r1 / slide, r2 / slide
-        for i, f in ((a, 1.0 - s), (b, s), (c, -(1.0 - t)), (d, -t)):
-            if inv_mass[i] == 0.0:
-                continue
-            m = 1.0 / inv_mass[i]
-            ke0 = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-            h = -f * j * inv_mass[i]
-            vel[i, 0] += h * u0
-            vel[i, 1] += h * u1
-            vel[i, 2] += h * u2
-            for k in range(3):
-                pos1[i, k] = pos0[i, k] + dt * vel[i, k]
-            taken += ke0 - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
-    return taken
-
-
-@njit(cache=True)
-def impulse_work(before, after, start, inv_mass):
-    """sum m (after - before) . (start + after) / 2 over the free nodes [J]: the work of the
-    impulses that changed v_{n+1/2} from ``before`` to ``after``, paired with v_{n-1/2}
-    (``start``) as the leapfrog pairs a force's work."""
-    w = 0.0
-    for i in range(before.shape[0]):
-        if inv_mass[i] == 0.0:
-            continue
-        acc = 0.0
-        for k in range(3):
-            dv = after[i, k] - before[i, k]
-            if dv != 0.0:
-                acc += dv * (start[i, k] + after[i, k])
-        w += 0.5 * acc / inv_mass[i]
-    return w

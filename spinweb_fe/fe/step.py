@@ -359,7 +359,10 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         record = step % rec.every == 0
         t = step * dt
         holding = any_held(arm_ptr, front)
-        touch_begin(audit, contact, pos, vel, inv_mass, dt)
+        if axis is not None:
+            touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate)
+        else:
+            touch_begin(audit, contact, pos, vel, inv_mass, dt)
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
@@ -428,7 +431,18 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if holding:  # the reels and brakes let their lines out
             device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs,
                          (step + 1) * dt, dt)
-        if touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front):
+        if axis is not None:
+            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front,
+                             hub_rate, hub_inertia)
+            if contact is not None and contact.spin[1] != 0.0:  # the fail-safe's reaction
+                hub_angle[0] += dt * contact.spin[1]
+                place_bound(axis, body, hub, coil, cs, rs, pos, vel, hub_angle[0],
+                            hub_rate[0])
+                if any_held(arm_ptr, front):
+                    place_coil(axis, coil, cs, pos, vel, hub_angle[0], hub_rate[0])
+        else:
+            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front)
+        if stop:
             return SERVICE, nrec
     return 0, nrec
 

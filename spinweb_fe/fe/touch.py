@@ -129,13 +129,17 @@ def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
 
 
 @njit(inline="always")
-def touch_begin(audit, contact, pos, vel, inv_mass, dt):
-    """Step start: x_n kept, the contact's kick."""
+def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None):
+    """Step start: x_n kept, the contact's kick (``rate``: a fixed axis's, kept for the
+    fail-safe's reaction)."""
     if audit is not None:
         audit.pos0[:] = pos
     elif contact is not None:
         contact.pos0[:] = pos
     if contact is not None:
+        if rate is not None:
+            contact.spin[0] = rate[0]
+        contact.spin[1] = 0.0
         contact_push(contact, pos, vel, inv_mass, dt)
 
 
@@ -149,11 +153,13 @@ def touch_row(audit, contact, k):
 
 
 @njit(inline="always")
-def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts):
-    """Step end: the fail-safe, then the audit. True: stop for Python."""
+def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts, rate=None,
+              inertia=None):
+    """Step end: the fail-safe (a fixed axis's ``rate`` and ``inertia`` take its reaction),
+    then the audit. True: stop for Python."""
     fresh, clean = False, False
     if contact is not None:
-        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt)
+        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt, rate, inertia)
         fresh = impulses == 0
         clean = fresh and left == 0
     if audit is not None:

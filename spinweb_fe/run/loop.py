@@ -332,7 +332,8 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
                     contact_k._replace(pos0=audit_k.pos0, stats=contact_k.stats.copy(),
                                        reach=contact_k.reach.copy(),
                                        hold=contact_k.hold.copy(),
-                                       vel0=contact_k.vel0.copy())
+                                       vel0=contact_k.vel0.copy(),
+                                       spin=contact_k.spin.copy())
                 touched = (audit_k, contact_k)
             t0 = time.perf_counter()
             code, nrec = chunks.advance(state.copy(), dt, 1, *(touched or (None, None)))

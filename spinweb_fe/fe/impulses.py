@@ -1,0 +1,99 @@
+"""The contact's impulses at a step's end besides the fail-safe's crossings
+(fe.cable_contact): Coulomb friction between touching cables, and the bookkeeping of every
+impulse: its work paired as the leapfrog pairs a force, and the angular impulse about the
+axis that a fixed hub takes as their reaction (docs/solver.md, cable-cable contact)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu):
+    """Coulomb friction of the pairs in contact at the step's start (``hold``: normal force
+    [N], s, t; module docstring): a tangential impulse at their closest points against the
+    relative sliding velocity of ``vel`` (v_{n+1/2}), at most mu F dt and at most what
+    stops the sliding; the end positions follow (x_{n+1} = x_n + dt v_{n+1/2}). Returns the
+    kinetic energy it took [J] (>= 0)."""
+    taken = 0.0
+    for p in range(pairs.shape[0]):
+        fn = hold[p, 0]
+        if fn <= 0.0:
+            continue
+        s, t = hold[p, 1], hold[p, 2]
+        e, g = pairs[p, 0], pairs[p, 1]
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+        n0, n1, n2 = 0.0, 0.0, 0.0  # the push's direction, from x_n
+        for k in range(3):
+            nk = (pos0[a, k] + s * (pos0[b, k] - pos0[a, k])
+                  - pos0[c, k] - t * (pos0[d, k] - pos0[c, k]))
+            if k == 0:
+                n0 = nk
+            elif k == 1:
+                n1 = nk
+            else:
+                n2 = nk
+        size = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if size == 0.0:
+            continue
+        n0, n1, n2 = n0 / size, n1 / size, n2 / size
+        r0 = (1.0 - s) * vel[a, 0] + s * vel[b, 0] - (1.0 - t) * vel[c, 0] - t * vel[d, 0]
+        r1 = (1.0 - s) * vel[a, 1] + s * vel[b, 1] - (1.0 - t) * vel[c, 1] - t * vel[d, 1]
+        r2 = (1.0 - s) * vel[a, 2] + s * vel[b, 2] - (1.0 - t) * vel[c, 2] - t * vel[d, 2]
+        vn = r0 * n0 + r1 * n1 + r2 * n2
+        r0, r1, r2 = r0 - vn * n0, r1 - vn * n1, r2 - vn * n2
+        slide = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        if slide == 0.0:
+            continue
+        w = (1.0 - s) ** 2 * inv_mass[a] + s * s * inv_mass[b] \
+            + (1.0 - t) ** 2 * inv_mass[c] + t * t * inv_mass[d]
+        j = min(mu * fn * dt, slide / w)
+        u0, u1, u2 = r0 / slide, r1 / slide, r2 / slide
+        for i, f in ((a, 1.0 - s), (b, s), (c, -(1.0 - t)), (d, -t)):
+            if inv_mass[i] == 0.0:
+                continue
+            m = 1.0 / inv_mass[i]
+            ke0 = 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+            h = -f * j * inv_mass[i]
+            vel[i, 0] += h * u0
+            vel[i, 1] += h * u1
+            vel[i, 2] += h * u2
+            for k in range(3):
+                pos1[i, k] = pos0[i, k] + dt * vel[i, k]
+            taken += ke0 - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+    return taken
+
+
+@njit(cache=True)
+def axial_impulse(pos, before, after, inv_mass):
+    """sum m (x x (after - before))_z over the free nodes [N m s]: the angular impulse about
+    the z axis that changed their v_{n+1/2} from ``before`` to ``after`` at x_n ``pos`` (the
+    angular momentum the step keeps is sum m x_n x v_{n+1/2})."""
+    out = 0.0
+    for i in range(before.shape[0]):
+        if inv_mass[i] == 0.0:
+            continue
+        d0, d1 = after[i, 0] - before[i, 0], after[i, 1] - before[i, 1]
+        if d0 != 0.0 or d1 != 0.0:
+            out += (pos[i, 0] * d1 - pos[i, 1] * d0) / inv_mass[i]
+    return out
+
+
+@njit(cache=True)
+def impulse_work(before, after, start, inv_mass):
+    """sum m (after - before) . (start + after) / 2 over the free nodes [J]: the work of the
+    impulses that changed v_{n+1/2} from ``before`` to ``after``, paired with v_{n-1/2}
+    (``start``) as the leapfrog pairs a force's work."""
+    w = 0.0
+    for i in range(before.shape[0]):
+        if inv_mass[i] == 0.0:
+            continue
+        acc = 0.0
+        for k in range(3):
+            dv = after[i, k] - before[i, k]
+            if dv != 0.0:
+                acc += dv * (start[i, k] + after[i, k])
+        w += 0.5 * acc / inv_mass[i]
+    return w
