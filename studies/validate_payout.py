@@ -420,25 +420,32 @@ def restarts(cs, fe, times=(0.005, 0.01, 0.02)):
     return out, first
 
 
-def brake_study():
-    """The point-mass tethers braked at 30 and 38 kN."""
+def braked_tethers(path, sets, tag, label, name, title):
+    """Tethers braked at BRAKE_FORCES from t = 0 and restarted from the FE's state: records,
+    report, figure ``payout_<name>.png`` and ``payout_<name>.json``."""
     recs, curves, marks, extra = {}, [], [], []
     for force, colour in zip(BRAKE_FORCES, ("C0", "C3")):
-        rec, fe, an, cs = brake_run(LIGHT, force, [E_100X], f"brake_light_{force:g}")
+        rec, fe, an, cs = brake_run(path, force, sets, f"brake_{tag}_{force:g}")
         rec["restarted_from_fe"], r = restarts(cs, fe)
         extra.append((f"analytic {force / 1e3:g} kN, restarted from the FE at 5 ms", r, colour))
         recs[f"brake_{force / 1e3:g}kN"] = rec
-        report(f"brake {force / 1e3:g} kN (0-{rec['an_end_s']:.3f} s)", rec)
+        report(f"{label} {force / 1e3:g} kN (0-{rec['an_end_s']:.3f} s)", rec)
         print(f"   work {rec['work']['rel']:.2e}, FE tangent {rec['fe_tangent_s']}, FE L end "
               f"{rec['fe_L_end_m'][0]:.1f} m", flush=True)
         for k, v in rec["restarted_from_fe"].items():
             print(f"   restarted {k}: {v}", flush=True)
         curves.append((f"{force / 1e3:g} kN", fe, an, colour))
         marks.append(rec["an_end_s"])
-    plot_device(curves, IMG / "payout_brake.png", "brake at D, point-mass tethers (100x Zylon): "
-                "FE (solid) vs analytical stick/slip (dashed, to the arm's return to its "
-                "tangent: dotted lines)", t_max=0.2, t_marks=marks, extra=extra)
-    dump("brake", {"case": str(LIGHT.relative_to(ROOT)), "sets": [E_100X], "runs": recs})
+    plot_device(curves, IMG / f"payout_{name}.png", title, t_max=0.2, t_marks=marks,
+                extra=extra)
+    dump(name, {"case": str(path.relative_to(ROOT)), "sets": list(sets), "runs": recs})
+
+
+def brake_study():
+    """The point-mass tethers braked at 30 and 38 kN."""
+    braked_tethers(LIGHT, [E_100X], "light", "brake", "brake",
+                   "brake at D, point-mass tethers (100x Zylon): FE (solid) vs analytical "
+                   "stick/slip (dashed, to the arm's return to its tangent: dotted lines)")
 
 
 # --------------------------------------------------------------------------- Eq. 7
@@ -503,23 +510,9 @@ def eq7_study():
 
 def eq7_brake_study():
     """Stiff Eq. 7 tethers braked at 30 and 38 kN (from t = 0 and restarted from the FE)."""
-    recs, curves, marks, extra = {}, [], [], []
-    for force, colour in zip(BRAKE_FORCES, ("C0", "C3")):
-        rec, fe, an, cs = brake_run(EQ7_STIFF, force, [], f"brake_eq7_{force:g}")
-        rec["restarted_from_fe"], r = restarts(cs, fe)
-        extra.append((f"analytic {force / 1e3:g} kN, restarted from the FE at 5 ms", r, colour))
-        recs[f"brake_{force / 1e3:g}kN"] = rec
-        report(f"Eq. 7 brake {force / 1e3:g} kN (0-{rec['an_end_s']:.3f} s)", rec)
-        print(f"   work {rec['work']['rel']:.2e}, FE tangent {rec['fe_tangent_s']}, FE L end "
-              f"{rec['fe_L_end_m'][0]:.1f} m", flush=True)
-        for k, v in rec["restarted_from_fe"].items():
-            print(f"   restarted {k}: {v}", flush=True)
-        curves.append((f"{force / 1e3:g} kN", fe, an, colour))
-        marks.append(rec["an_end_s"])
-    plot_device(curves, IMG / "payout_eq7_brake.png", "brake at D, stiff Eq. 7 tethers (1000x "
-                "Zylon): FE (solid) vs analytical stick/slip (dashed; dotted: restarted from "
-                "the FE at 5 ms)", t_max=0.2, t_marks=marks, extra=extra)
-    dump("eq7_brake", {"case": str(EQ7_STIFF.relative_to(ROOT)), "runs": recs})
+    braked_tethers(EQ7_STIFF, [], "eq7", "Eq. 7 brake", "eq7_brake",
+                   "brake at D, stiff Eq. 7 tethers (1000x Zylon): FE (solid) vs analytical "
+                   "stick/slip (dashed; dotted: restarted from the FE at 5 ms)")
 
 
 # --------------------------------------------------------------------------- web

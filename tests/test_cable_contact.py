@@ -258,22 +258,9 @@ def test_the_fixed_hub_takes_the_reaction_of_the_contacts_impulses(friction):
     friction), 0.05 s: the released layers' impulses against the held coil and the tied
     frame turn the hub back, so the angular momentum about the axis is kept to round-off
     (1e-12; measured 2e-15, 1.3e-8 when the hub took no reaction)."""
-    from spinweb_fe import case as case_mod
-    from spinweb_fe.case.scene import prepare
-    from spinweb_fe.fe.cable_contact import CableContact, cable_radius
-    from spinweb_fe.record.crossings import CrossingAudit
-    from spinweb_fe.run.loop import Schedule, simulate
+    from support import layered_contact_run
 
-    web = Path(__file__).resolve().parents[1] / "cases" / "paper_feedback_web.toml"
-    case = case_mod.load(web, ["fold.layer_gap=0.005", "time.end=0.05", "output.frame_dt=0",
-                               "contact.cables=true", "control.law='free'",
-                               f"contact.friction={friction}"])
-    sc = prepare(case)
-    audit = CrossingAudit(sc.model, case.audit.skin, case.audit.touch)
-    contact = CableContact(sc.model, cable_radius(case, sc.model), case.contact.stiffness,
-                           case.contact.friction)
-    h = simulate(sc.model, sc.control, sc.state, sc.dt, Schedule(0.05, 1e-3),
-                 crossings=audit, contact=contact).history
+    h, contact, _ = layered_contact_run(["control.law='free'", f"contact.friction={friction}"])
     K = h["angular_momentum"]
     assert contact.dissipated > 100.0  # the impulses acted
     assert np.abs(K - K[0]).max() < 1e-12 * K[0]

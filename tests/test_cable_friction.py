@@ -7,7 +7,6 @@ it takes is what it books, and a frictionless case is bit-identical to one witho
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -105,32 +104,15 @@ def test_a_run_with_friction_books_it_and_frictionless_is_unchanged():
     0.06 kJ of the fail-safe's without it), booked so that the energy balance closes as
     without friction (7.3e-5 both; tolerance 1e-3, the contact test's) and no crossing is
     made."""
-    from spinweb_fe import case as case_mod
-    from spinweb_fe.case.scene import prepare
-    from spinweb_fe.fe.cable_contact import CableContact, cable_radius
-    from spinweb_fe.record.crossings import CrossingAudit
+    from support import layered_contact_run
+
     from spinweb_fe.record.energy import balance_error
-    from spinweb_fe.run.loop import Schedule, simulate
-
-    web = Path(__file__).resolve().parents[1] / "cases" / "paper_feedback_web.toml"
-
-    def go(sets):
-        case = case_mod.load(web, ["fold.layer_gap=0.005", "time.end=0.05",
-                                   "output.frame_dt=0", "contact.cables=true", *sets])
-        sc = prepare(case)
-        audit = CrossingAudit(sc.model, case.audit.skin, case.audit.touch)
-        contact = CableContact(sc.model, cable_radius(case, sc.model), case.contact.stiffness,
-                               case.contact.friction)
-        h = simulate(sc.model, sc.control, sc.state, sc.dt, Schedule(0.05, 1e-3),
-                     crossings=audit, contact=contact).history
-        return h, contact, int(audit.kernel.count[0])
-
-    plain, c0, _ = go([])
-    zero, _, _ = go(["contact.friction=0.0"])
+    plain, c0, _ = layered_contact_run([])
+    zero, _, _ = layered_contact_run(["contact.friction=0.0"])
     for k in plain:
         assert np.array_equal(plain[k], zero[k]), k
     assert c0.friction_dissipated == 0.0 and plain["cable_contact_energy"].max() > 10.0
-    rough, c1, crossings = go(["contact.friction=0.5"])
+    rough, c1, crossings = layered_contact_run(["contact.friction=0.5"])
     assert c1.friction_dissipated > 100.0
     assert rough["cable_contact_dissipation"][-1] == pytest.approx(c1.dissipated, rel=1e-12)
     assert balance_error(rough) < 1e-3 and balance_error(plain) < 1e-3

@@ -30,9 +30,10 @@ contact at its start gets a tangential impulse at its two closest points (the st
 normal force F from above), opposite to their relative sliding velocity v_t (of
 v_{n+1/2}) and at most what stops it there: j = min(mu F dt, |v_t| / w), w the pair's
 inverse mass at those points (sum of the squared weights over the nodes' masses), equal
-and opposite on the two elements (x_{n+1} = x_n + dt v_{n+1/2} follows). The kinetic
-energy it takes is booked with the fail-safe's as ``cable_contact_dissipation``; it is
-never negative (j <= |v_t| / w: the sliding is slowed at most to rest). The two points are
+and opposite on the two elements (x_{n+1} = x_n + dt v_{n+1/2} follows). The energy it
+takes is booked with the fail-safe's as ``cable_contact_dissipation`` (both paired as the
+step pairs a force's work, fe.impulses); the sliding is slowed at most to rest (j <= |v_t|
+/ w). The two points are
 up to twice the radius apart along the normal, so the pair of impulses makes a couple of
 that arm: angular momentum changes by at most 2 r j per contact (linear momentum is kept
 to round-off).

@@ -15,7 +15,8 @@ def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu
     [N], s, t; module docstring): a tangential impulse at their closest points against the
     relative sliding velocity of ``vel`` (v_{n+1/2}), at most mu F dt and at most what
     stops the sliding; the end positions follow (x_{n+1} = x_n + dt v_{n+1/2}). Returns the
-    kinetic energy it took [J] (>= 0)."""
+    half-step kinetic energy it took [J] (>= 0; the step books the impulses' work with
+    :func:`impulse_work` instead)."""
     taken = 0.0
     for p in range(pairs.shape[0]):
         fn = hold[p, 0]
@@ -25,16 +26,10 @@ def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu
         e, g = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-        n0, n1, n2 = 0.0, 0.0, 0.0  # the push's direction, from x_n
-        for k in range(3):
-            nk = (pos0[a, k] + s * (pos0[b, k] - pos0[a, k])
-                  - pos0[c, k] - t * (pos0[d, k] - pos0[c, k]))
-            if k == 0:
-                n0 = nk
-            elif k == 1:
-                n1 = nk
-            else:
-                n2 = nk
+        # the push's direction, p - q at x_n
+        n0 = (1.0 - s) * pos0[a, 0] + s * pos0[b, 0] - (1.0 - t) * pos0[c, 0] - t * pos0[d, 0]
+        n1 = (1.0 - s) * pos0[a, 1] + s * pos0[b, 1] - (1.0 - t) * pos0[c, 1] - t * pos0[d, 1]
+        n2 = (1.0 - s) * pos0[a, 2] + s * pos0[b, 2] - (1.0 - t) * pos0[c, 2] - t * pos0[d, 2]
         size = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
         if size == 0.0:
             continue
