@@ -61,6 +61,7 @@ SWEEP_TESTS = ("tests/test_montecarlo.py",)
 DESIGN_TESTS = ("tests/test_design.py",)
 CONTACT_TESTS = ("tests/test_cable_contact.py",)
 AUDIT_TESTS = ("tests/test_crossing_audit.py",)
+ZONE_TESTS = ("tests/test_impact_zones.py",)
 LINK_TESTS = ("tests/test_linking.py", "tests/test_linking_monitor.py")
 LAYER_TESTS = ("tests/test_layer_gap.py",)
 
@@ -380,6 +381,22 @@ MUTANTS = (
     Mutant("fixed_hub_no_contact_reaction", "spinweb_fe/fe/cable_contact.py",
            "            rate[0] += dw", "            rate[0] += 0.0 * dw",
            "a fixed hub does not take the reaction of the contact's impulses", CONTACT_TESTS),
+    Mutant("contact_no_impact_zones", "spinweb_fe/fe/cable_contact.py",
+           "    if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones",
+           "    if left < 0:  # the rounds ran out: the pairs still crossing move as rigid zones",
+           "the crossings the pair impulses' rounds leave are not gathered into zones",
+           ZONE_TESTS),
+    Mutant("impact_zone_no_spin", "spinweb_fe/fe/zones.py",
+           "                w[d] += c * axes[d, k]", "                w[d] += 0.0 * c * axes[d, k]",
+           "an impact zone moves without turning: its angular momentum is lost", ZONE_TESTS),
+    Mutant("impact_zone_not_with_hub", "spinweb_fe/fe/zones.py",
+           "                hub_zone(group, pos1, vel, inv_mass, dt, hub)",
+           "                pass",
+           "a zone with a node of the hub does not move with the hub", ZONE_TESTS),
+    Mutant("free_hub_no_contact_reaction", "spinweb_fe/fe/cable_contact.py",
+           "total -= body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt)",
+           "total -= 0.0",
+           "a free hub does not take the reaction of the contact's impulses", CONTACT_TESTS),
     Mutant("audit_world_frame_skin", "spinweb_fe/fe/touch.py",
            "moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))",
            "moved = moved_since(au.ref, pos, 1.0, 0.0)",

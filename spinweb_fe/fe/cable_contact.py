@@ -46,9 +46,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.crossing import (apart, boxes_apart, closest_nodes, closest_points,
-                                    pair_crossings, swept_boxes)
-from spinweb_fe.fe.impulses import axial_impulse, friction_impulses, impulse_work
+from spinweb_fe.fe.crossing import (boxes_apart, closest_nodes, closest_points,
+                                    moved_crosses, pair_crossings, swept_boxes)
+from spinweb_fe.fe.impulses import (axial_impulse, body_reaction, friction_impulses,
+                                   impulse_work)
+from spinweb_fe.fe.zones import ZONE_ROUNDS, axis_map, body_map, impact_zones
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
 KAPPA = 0.25
@@ -169,8 +171,10 @@ class ContactKernel(NamedTuple):
     elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; hold
     (P, 3): each pair's normal force [N] and closest points at the step's start; vel0,
     vel1, vel2 (n, 3) [m/s]: v_{n-1/2} at the step's start and scratch for the impulses'
-    work; spin (2,): a fixed axis's rate at the step's start [rad/s] and the change the
-    fail-safe's reaction made at its end; force
+    work; spin (16,): a fixed axis's rate at the step's start [rad/s], the change the
+    fail-safe's reaction made at its end (a free hub: 1 if it took one), the axis's angle
+    [rad] at the step's start, or a free hub's velocity [m/s], angular velocity [rad/s],
+    hub centre [m] and attitude quaternion there (fe.impulses.body_snapshot); force
     (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
     elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
     [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (8,): stored energy
@@ -221,15 +225,19 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None):
+def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
+                    theta=0.0):
     """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
     first (``ck.mu`` > 0). ``rate``, ``inertia`` ((1,) arrays, a fixed axis's rate
     omega_{n+1/2} and effective inertia): the hub takes the angular impulse about its axis
     that the impulses gave the free nodes, so that nodes held on or tied to it (which take
-    no share of an impulse) push back through it (``ck.spin[1]``: the rate's change; None,
-    a free hub: nothing)."""
+    no share of an impulse) push back through it (``ck.spin[1]``: the rate's change).
+    ``body`` (fe.rigid.RigidState, a free hub): the body takes the impulse and the moment
+    (fe.impulses.body_reaction; ``ck.spin[1]`` 1 when it did). The hub's motion over the
+    step (the fixed axis's turn to ``theta`` [rad], or the body's) moves the free nodes of
+    an impact zone that holds a node of the hub (fe.zones)."""
     ck.vel1[:] = vel
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0
     if rubbed:
@@ -237,8 +245,12 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None):
                           ck.mu)
         ck.vel2[:] = vel
     swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
+    if rate is not None:
+        hub = axis_map(theta - ck.spin[2])
+    else:
+        hub = body_map(body, ck.spin[8:16])
     _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass, dt,
-                                   ck.margin, ck.rounds, ck.box)
+                                   ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub)
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
         # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
@@ -246,11 +258,14 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None):
         # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
         total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass)
         if rate is not None:
-            dw = -axial_impulse(ck.pos0, ck.vel1, vel, inv_mass) / inertia[0]
+            dw = -axial_impulse(pos, ck.vel1, vel, inv_mass, dt) / inertia[0]
             # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
             total -= inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
             rate[0] += dw
             ck.spin[1] = dw
+        if body is not None:
+            total -= body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt)
+            ck.spin[1] = 1.0
         rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
         ck.stats[FRICTION] += rub
         ck.stats[TAKEN] += total - rub
@@ -300,7 +315,7 @@ class CableContact:
             self._pairs = audit.pairs
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
-                                         self.vel1, self.vel2, np.zeros(2), self.force,
+                                         self.vel1, self.vel2, np.zeros(16), self.force,
                                          self.share, audit.pos0, audit.active, audit.box,
                                          self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
@@ -349,19 +364,23 @@ def cable_radius(case, model) -> float:
 
 @njit(cache=True)
 def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
-                      box=None):
+                      box=None, zone_rounds=ZONE_ROUNDS, hub=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.crossing's exact test) gets an impulse along the normal of the two
     elements at the crossing, equal and opposite at their crossing points, that changes
     their relative normal velocity so that they end the step ``margin`` [m] apart on the
     side they came from; the nodes' half-step velocities and end positions are updated
-    (x_{n+1} = x_n + dt v_{n+1/2}). A node that does not move freely (inv_mass 0: held on
-    or tied to the hub) takes no share (its side is infinitely heavy; the hub does not
-    yet feel the reaction). The first pass tests every pair, later passes (at most
-    ``rounds`` in all) the pairs with a node an impulse moved; ``box`` (m, 6), if given,
-    the elements' swept boxes of the step (fe.crossing.swept_boxes) for the first pass. Returns (kinetic energy the
-    impulses took [J], impulses, crossings left)."""
+    (x_{n+1} by dt times the velocity's change). A node that does not move freely
+    (inv_mass 0: held on or tied to the hub) takes no share (its side is infinitely heavy
+    within the pass; the hub takes the reaction afterwards, :func:`contact_resolve`). The
+    first pass tests every pair, later passes (at most ``rounds`` in all) the pairs with a
+    node an impulse moved; ``box`` (m, 6), if given, the elements' swept boxes of the step
+    (fe.crossing.swept_boxes) for the first pass. If the rounds run out with crossings
+    left, the pairs still crossing move as impact zones (fe.zones: at most
+    ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
+    with a node of the hub). Returns (kinetic energy the pair impulses took [J], pair
+    impulses, crossings left)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
@@ -375,13 +394,12 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
             if box is not None and rnd == 0:
-                if boxes_apart(box, e, g, 0.0):
+                if boxes_apart(box, e, g, 0.0) or pair_crossings(
+                        pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+                        pos1[d], times, signs, scratch, cuts) == 0:
                     continue
-            elif not (moved[a] or moved[b] or moved[c] or moved[d]) \
-                    or apart(pos0, pos1, a, b, c, d):
-                continue
-            if pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
-                              pos1[d], times, signs, scratch, cuts) == 0:
+            elif not moved_crosses(pos0, pos1, moved, a, b, c, d, times, signs, scratch,
+                                   cuts):
                 continue
             left += 1
             tau = times[0]
@@ -419,8 +437,9 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                     continue
                 ke0 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
                 for k in range(3):
-                    vel[i, k] += f * j * inv_mass[i] * n[k]
-                    pos1[i, k] = pos0[i, k] + dt * vel[i, k]
+                    dv = f * j * inv_mass[i] * n[k]
+                    vel[i, k] += dv
+                    pos1[i, k] += dt * dv  # (not x_n + dt v: a node the hub placed or let go)
                 ke1 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
                 now[i] = True
             taken += ke0 - ke1
@@ -428,4 +447,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         moved = now
         if left == 0:
             break
+    if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
+        _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
+                               zone_rounds, hub)
     return taken, impulses, left

@@ -421,3 +421,14 @@ def moved_since(ref, pos, c, s):
         dx, dy, dz = x - ref[i, 0], y - ref[i, 1], pos[i, 2] - ref[i, 2]
         worst = max(worst, dx * dx + dy * dy + dz * dz)
     return np.sqrt(worst)
+
+
+@njit(inline="always")
+def moved_crosses(pos0, pos1, moved, a, b, c, d, times, signs, scratch, cuts):
+    """Whether elements ab and cd, one of whose nodes is in ``moved``, cross over the step
+    from ``pos0`` to ``pos1`` (a later pass of the contact's fail-safe: the swept boxes
+    first, then the exact test; ``times``, ``signs`` as :func:`pair_crossings` fills them)."""
+    if not (moved[a] or moved[b] or moved[c] or moved[d]) or apart(pos0, pos1, a, b, c, d):
+        return False
+    return pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+                          pos1[d], times, signs, scratch, cuts) > 0

@@ -1,12 +1,15 @@
 """The contact's impulses at a step's end besides the fail-safe's crossings
 (fe.cable_contact): Coulomb friction between touching cables, and the bookkeeping of every
 impulse: its work paired as the leapfrog pairs a force, and the angular impulse about the
-axis that a fixed hub takes as their reaction (docs/solver.md, cable-cable contact)."""
+axis that a fixed hub takes as their reaction, or the impulse and moment a free hub takes
+(docs/solver.md, cable-cable contact)."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from spinweb_fe.fe.rigid import cross, dot, hub_centre, inv_inertia, mul_t, rotation, turn
 
 
 @njit(cache=True)
@@ -55,24 +58,28 @@ def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu
             vel[i, 0] += h * u0
             vel[i, 1] += h * u1
             vel[i, 2] += h * u2
-            for k in range(3):
-                pos1[i, k] = pos0[i, k] + dt * vel[i, k]
+            pos1[i, 0] += dt * h * u0
+            pos1[i, 1] += dt * h * u1
+            pos1[i, 2] += dt * h * u2
             taken += ke0 - 0.5 * m * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
     return taken
 
 
 @njit(cache=True)
-def axial_impulse(pos, before, after, inv_mass):
-    """sum m (x x (after - before))_z over the free nodes [N m s]: the angular impulse about
-    the z axis that changed their v_{n+1/2} from ``before`` to ``after`` at x_n ``pos`` (the
-    angular momentum the step keeps is sum m x_n x v_{n+1/2})."""
+def axial_impulse(pos, before, after, inv_mass, dt):
+    """sum m (y x (after - before))_z over the free nodes [N m s], y = x_{n+1} - dt
+    v_{n+1/2} at the end positions ``pos`` (x_n for a node that moved freely): the angular
+    impulse about the z axis that changed their v_{n+1/2} from ``before`` to ``after`` (and
+    x_{n+1} by dt times that; the angular momentum the step keeps is sum m x_{n+1} x
+    v_{n+1/2}, which changes by y x m dv)."""
     out = 0.0
     for i in range(before.shape[0]):
         if inv_mass[i] == 0.0:
             continue
         d0, d1 = after[i, 0] - before[i, 0], after[i, 1] - before[i, 1]
         if d0 != 0.0 or d1 != 0.0:
-            out += (pos[i, 0] * d1 - pos[i, 1] * d0) / inv_mass[i]
+            y0, y1 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1]
+            out += (y0 * d1 - y1 * d0) / inv_mass[i]
     return out
 
 
@@ -92,3 +99,78 @@ def impulse_work(before, after, start, inv_mass):
                 acc += dv * (start[i, k] + after[i, k])
         w += 0.5 * acc / inv_mass[i]
     return w
+
+
+@njit(cache=True)
+def node_impulse(pos, before, after, inv_mass, dt):
+    """(J, H): sum m (after - before) [N s] and sum m y x (after - before) [N m s] over the
+    free nodes, y = x_{n+1} - dt v_{n+1/2} at the end positions ``pos`` (see
+    :func:`axial_impulse`): the linear and angular impulse (about the origin) that changed
+    their v_{n+1/2}."""
+    J = np.zeros(3)
+    H = np.zeros(3)
+    for i in range(before.shape[0]):
+        if inv_mass[i] == 0.0:
+            continue
+        m = 1.0 / inv_mass[i]
+        d0, d1, d2 = after[i, 0] - before[i, 0], after[i, 1] - before[i, 1], \
+            after[i, 2] - before[i, 2]
+        if d0 == 0.0 and d1 == 0.0 and d2 == 0.0:
+            continue
+        y0, y1, y2 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1], \
+            pos[i, 2] - dt * after[i, 2]
+        J[0] += m * d0
+        J[1] += m * d1
+        J[2] += m * d2
+        H[0] += m * (y1 * d2 - y2 * d1)
+        H[1] += m * (y2 * d0 - y0 * d2)
+        H[2] += m * (y0 * d1 - y1 * d0)
+    return J, H
+
+
+@njit(cache=True)
+def body_reaction(rs, pos, before, after, inv_mass, start, dt):
+    """A free hub (fe.rigid.RigidState ``rs``, after its drift) takes the reaction of the
+    impulses that changed the free nodes' v_{n+1/2} from ``before`` to ``after`` (``pos``:
+    their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times that (as a node's impulse moves its
+    x_{n+1}), Pi_{n+1/2} such that the step's angular momentum M X x V + Pi + sum m x_n x
+    v_{n+1/2} is unchanged, and its attitude turned by dt times the change of its angular
+    velocity (as a fixed axis turns by dt dw). ``start``: V_{n-1/2} [m/s] and its angular
+    velocity [rad/s] at the step's start. Returns the work of the reaction on the body [J],
+    paired as the leapfrog pairs a force's (with the half-step values before and after)."""
+    J, H = node_impulse(pos, before, after, inv_mass, dt)
+    M = rs.mass[0]
+    X, V, Pi = rs.position, rs.velocity, rs.momentum
+    # M (X + dt dV) x (V + dV) - M X x V = (X - dt V) x (M dV): the body's drift started there
+    base = X - dt * V
+    dPi = cross(base, J) - H
+    R = rotation(rs.quaternion)
+    w_old = inv_inertia(rs, R, Pi)
+    for d in range(3):
+        V[d] -= J[d] / M
+        X[d] -= dt * J[d] / M
+        Pi[d] += dPi[d]
+    w_new = inv_inertia(rs, R, Pi)
+    dw = w_new - w_old
+    size = np.sqrt(dot(dw, dw))
+    if size > 0.0:
+        turn(rs.quaternion, mul_t(R, dw) / size, dt * size)
+        q = rs.quaternion
+        qn = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        for k in range(4):
+            q[k] /= qn
+    return (dot(-J, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5
+
+
+@njit(cache=True)
+def body_snapshot(rs, out):
+    """A free hub's V [m/s] and angular velocity I_s^{-1} Pi [rad/s] (the ``start`` of
+    :func:`body_reaction`), its hub centre [m] and attitude quaternion now, into ``out``
+    (14,) (None, a fixed axis: nothing)."""
+    if rs is None:
+        return
+    R = rotation(rs.quaternion)
+    out[0:3] = rs.velocity
+    out[3:6] = inv_inertia(rs, R, rs.momentum)
+    out[6:9] = hub_centre(rs, R)
+    out[9:13] = rs.quaternion

@@ -36,7 +36,7 @@ from spinweb_fe.fe.axis import (NodeMotion, axis_devices, axis_field, axis_field
                                 axis_kick, axis_nodes, axis_reaction, axis_row, axis_start,
                                 axis_vector_row, place_rigid)
 from spinweb_fe.fe.body import (body_devices, body_drift, body_kick, body_nodes, body_release,
-                                body_row, body_start, body_state)
+                                body_row, body_start, body_state, twist)
 from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
                                 held_moment, payout_allowed, place_held, release_fronts,
                                 scatter_bundles)
@@ -233,6 +233,23 @@ def hub_now(axis, body, rs, kick, j_eff):
     return out
 
 
+@njit(inline="always")
+def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
+    """After the hub took the reaction of the contact's impulses (fe.touch.touch_end): a
+    fixed axis turns by dt times its rate's change ``dw``, a free body has turned itself;
+    the tied and held nodes are placed again. Returns the hub's angle [rad]."""
+    if axis is not None:
+        theta = hs.angle[0] + dt * dw
+        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, theta, hs.rate[0])
+        if any_held(coil.arm_ptr, cs.front):
+            place_held(coil, cs, pos, vel, theta, hs.rate[0])
+    if body is not None:
+        place_body(hub, coil, cs, rs, pos, vel)
+        hs.rate[0], hs.inertia[0] = body_state(rs)
+        theta = twist(rs.quaternion, hs.angle[0])
+    return theta
+
+
 @njit(cache=True, no_cpython_wrapper=True)
 def probe_positions(rec, k, pos, vel, vprobe):
     """Probe positions x_n into row k, before the node pass; v_{n-1/2} kept in ``vprobe``."""
@@ -360,9 +377,9 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         t = step * dt
         holding = any_held(arm_ptr, front)
         if axis is not None:
-            touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate)
+            touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate, None, hub_angle[0])
         else:
-            touch_begin(audit, contact, pos, vel, inv_mass, dt)
+            touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs)
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
@@ -434,14 +451,12 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if axis is not None:
             stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front,
                              hub_rate, hub_inertia)
-            if contact is not None and contact.spin[1] != 0.0:  # the fail-safe's reaction
-                hub_angle[0] += dt * contact.spin[1]
-                place_bound(axis, body, hub, coil, cs, rs, pos, vel, hub_angle[0],
-                            hub_rate[0])
-                if any_held(arm_ptr, front):
-                    place_coil(axis, coil, cs, pos, vel, hub_angle[0], hub_rate[0])
         else:
-            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front)
+            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front,
+                             None, None, rs)
+        if contact is not None and contact.spin[1] != 0.0:  # the fail-safe's reaction
+            hub_angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs,
+                                   contact.spin[1], dt)
         if stop:
             return SERVICE, nrec
     return 0, nrec

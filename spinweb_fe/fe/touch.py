@@ -33,6 +33,7 @@ from numba import njit
 
 from spinweb_fe.fe.cable_contact import contact_push, contact_resolve, contact_row
 from spinweb_fe.fe.crossing import boxed_crossings, candidate_pairs, moved_since, swept_boxes
+from spinweb_fe.fe.impulses import body_snapshot
 
 #: status of ``advance``: stopped after a step for Python to rebuild the audit's list
 SERVICE = 2
@@ -129,9 +130,10 @@ def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
 
 
 @njit(inline="always")
-def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None):
-    """Step start: x_n kept, the contact's kick (``rate``: a fixed axis's, kept for the
-    fail-safe's reaction)."""
+def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, theta=0.0):
+    """Step start: x_n kept, the contact's kick (``rate`` and ``theta``: a fixed axis's rate
+    and angle, ``body``: a free hub's state, whose velocities and pose are kept for the
+    fail-safe's reaction and its zones)."""
     if audit is not None:
         audit.pos0[:] = pos
     elif contact is not None:
@@ -139,6 +141,9 @@ def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None):
     if contact is not None:
         if rate is not None:
             contact.spin[0] = rate[0]
+            contact.spin[2] = theta
+        if body is not None:
+            body_snapshot(body, contact.spin[2:16])
         contact.spin[1] = 0.0
         contact_push(contact, pos, vel, inv_mass, dt)
 
@@ -154,12 +159,13 @@ def touch_row(audit, contact, k):
 
 @njit(inline="always")
 def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts, rate=None,
-              inertia=None):
-    """Step end: the fail-safe (a fixed axis's ``rate`` and ``inertia`` take its reaction),
-    then the audit. True: stop for Python."""
+              inertia=None, body=None):
+    """Step end: the fail-safe (a fixed axis's ``rate`` and ``inertia``, or a free hub's
+    ``body``, take its reaction), then the audit. True: stop for Python."""
     fresh, clean = False, False
     if contact is not None:
-        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt, rate, inertia)
+        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt, rate, inertia, body,
+                                         theta)
         fresh = impulses == 0
         clean = fresh and left == 0
     if audit is not None:

@@ -1,0 +1,193 @@
+"""Impact zones (fe.zones): the pairs the fail-safe's rounds leave crossing move as rigid
+zones. A column of five stacked bars through which the top bar drops in one step: with
+one round of pair impulses crossings are left; the zones leave none, keep the linear and
+angular momentum, and a zone with a node held on the hub is left alone and counted."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from spinweb_fe.fe.cable_contact import MARGIN, resolve_crossings
+from spinweb_fe.fe.crossing import pair_crossings
+from spinweb_fe.fe.zones import impact_zones
+
+DT = 1e-3
+LAYERS = 5
+
+
+def column():
+    """Five bars 2 m long stacked 10 mm apart, each turned 0.3 rad from the one below;
+    the top bar drops at 60 m/s (60 mm in the step: through every layer), the others
+    rest. Returns (pairs, elem_nodes, x_n, x_{n+1}, v_{n+1/2}, inverse masses)."""
+    pos = np.empty((2 * LAYERS, 3))
+    for k in range(LAYERS):
+        a = 0.3 * k
+        c, s = np.cos(a), np.sin(a)
+        pos[2 * k] = (-c, -s, 0.01 * k)
+        pos[2 * k + 1] = (c, s, 0.01 * k)
+    vel = np.zeros_like(pos)
+    vel[-2:, 2] = -60.0
+    vel[-2:, 0] = (3.0, -1.0)  # and slides and turns
+    elems = np.arange(2 * LAYERS, dtype=np.int64).reshape(LAYERS, 2)
+    pairs = np.array(list(itertools.combinations(range(LAYERS), 2)), np.int64)
+    inv_mass = np.linspace(0.5, 1.5, 2 * LAYERS)
+    return pairs, elems, pos, pos + DT * vel, vel, inv_mass
+
+
+def crossings(pairs, elems, pos0, pos1):
+    times, signs = np.empty(3), np.empty(3, np.int64)
+    n = 0
+    for e, g in pairs:
+        a, b = elems[e]
+        c, d = elems[g]
+        n += pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+                            pos1[d], times, signs)
+    return n
+
+
+def momenta(pos1, vel, inv_mass):
+    """(P, L): sum m v and sum m (x_{n+1} - dt v) x v of the free nodes."""
+    m = np.where(inv_mass > 0, 1.0 / np.where(inv_mass > 0, inv_mass, 1.0), 0.0)[:, None]
+    return (m * vel).sum(0), (m * np.cross(pos1 - DT * vel, vel)).sum(0)
+
+
+def rigid(vel, pos0):
+    """Whether the velocities are one rigid motion (to 1e-12 of the drop speed)."""
+    n = len(vel)
+    return all(abs(np.dot(vel[i] - vel[j], pos0[i] - pos0[j])) < 1e-12 * 60.0
+               for i, j in itertools.combinations(range(n), 2))
+
+
+def test_the_pair_rounds_can_run_out():
+    """The premise: free bars squeezed between two bars of the hub that do not move as one
+    body (the top one drops through the column, the bottom one stays) cannot be parted by
+    pair impulses: the twenty rounds run out with crossings left; no zone can part them
+    either (no rigid motion of the hub carries both), and they are counted."""
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    inv_mass[[0, 1, -2, -1]] = 0.0
+    _, impulses, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4,
+                                          20, None, 0)
+    assert impulses > 20 and left > 0
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    inv_mass[[0, 1, -2, -1]] = 0.0
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4, 20, None)
+    assert left > 0 and crossings(pairs, elems, pos0, pos1) == left
+
+
+def squeeze():
+    """The column's outer bars (1 t each) close on the three between them from both sides,
+    to 0.2 mm apart at the step's end; with a margin of 2 mm (:data:`WIDE_MARGIN`) the
+    light bars cannot end that far from both."""
+    pairs, elems, pos0, _, vel, inv_mass = column()
+    vel[:] = 0.0
+    u = (0.01 * (LAYERS - 1) - 2e-4) / 2 / DT
+    vel[:2, 2], vel[-2:, 2] = u, -u
+    inv_mass[[0, 1, -2, -1]] = 1e-3
+    return pairs, elems, pos0, pos0 + DT * vel, vel, inv_mass
+
+
+#: the fail-safe's margin [m] of :func:`squeeze`
+WIDE_MARGIN = 2e-3
+
+
+def test_a_squeeze_the_pair_rounds_cannot_part_is_parted_by_a_zone():
+    """The squeeze: the pair impulses ping-pong the light bars between the heavy ones and
+    their twenty rounds leave crossings (the zones held back); with the zones the five bars
+    leave the step as one rigid zone, no pair crossing, the linear momentum kept to
+    1e-12."""
+    pairs, elems, pos0, pos1, vel, inv_mass = squeeze()
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, WIDE_MARGIN,
+                                   20, None, 0)
+    assert left > 0 and crossings(pairs, elems, pos0, pos1) > 0
+    pairs, elems, pos0, pos1, vel, inv_mass = squeeze()
+    P0, _ = momenta(pos1, vel, inv_mass)
+    scale = (np.abs(vel[:, 2]) / inv_mass).max()  # the heavy bars' momentum [N s]
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, WIDE_MARGIN,
+                                   20, None)
+    assert left == 0 and crossings(pairs, elems, pos0, pos1) == 0
+    assert rigid(vel, pos0)
+    P1, _ = momenta(pos1, vel, inv_mass)
+    assert np.abs(P1 - P0).max() < 1e-12 * scale
+
+
+def test_after_the_zones_no_pair_crosses():
+    """After the fail-safe with a single round of pair impulses (so that the zones do the
+    rest) no pair crosses over the step, the linear momentum of the free nodes is the
+    start's to 1e-12 (round-off), and x_{n+1} = x_n + dt v_{n+1/2} still holds. (The pair
+    impulses act at points that are apart at x_n, so they change the angular momentum by
+    their couple; the hub takes it in a run, fe.impulses.)"""
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    P0, _ = momenta(pos1, vel, inv_mass)
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4, 1,
+                                   None)
+    assert left == 0
+    assert crossings(pairs, elems, pos0, pos1) == 0
+    P1, _ = momenta(pos1, vel, inv_mass)
+    assert np.abs(P1 - P0).max() < 1e-12 * np.abs(P0).max()
+    assert np.allclose(pos1, pos0 + DT * vel, rtol=0, atol=1e-15)
+
+
+def test_a_zone_moves_rigidly_and_keeps_the_momenta():
+    """The zones called directly on the column: one zone of every bar, whose velocities
+    are one rigid motion V + w x (x - X) (the difference of any two nodes' velocities is
+    perpendicular to their separation, to 1e-12 of the speeds), with the linear and the
+    angular momentum of the start to 1e-12, and no crossing left."""
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    P0, L0 = momenta(pos1, vel, inv_mass)
+    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT)
+    assert (zones, left) == (1, 0)
+    assert crossings(pairs, elems, pos0, pos1) == 0
+    for i, j in itertools.combinations(range(2 * LAYERS), 2):
+        assert abs(np.dot(vel[i] - vel[j], pos0[i] - pos0[j])) < 1e-12 * 60.0
+    P1, L1 = momenta(pos1, vel, inv_mass)
+    scale = np.abs(P0).max()
+    assert np.abs(P1 - P0).max() < 1e-12 * scale
+    assert np.abs(L1 - L0).max() < 1e-12 * scale
+
+
+def test_a_zone_with_a_held_node_is_left_without_the_hubs_motion():
+    """A node of the bottom bar held on the hub (inverse mass 0) and no hub motion given:
+    the zone that holds it is not moved, its crossings are returned as left (the audit
+    counts them)."""
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    inv_mass[0] = 0.0
+    before = vel.copy()
+    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT)
+    assert zones <= 0 and left > 0
+    assert np.array_equal(vel, before)
+
+
+def test_the_margin_of_the_pair_impulses_is_unchanged():
+    """The zones only run when the rounds are used up: a single crossing pair is parted by
+    its pair impulse to the fail-safe's margin, as before the zones existed."""
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    sub = np.array([[0, 1]], np.int64)  # the drop through the bottom bar alone
+    e2 = np.array([[0, 1], [2, 3]], np.int64)
+    idx = np.array([0, 1, 8, 9])
+    p0, p1, v, im = pos0[idx].copy(), pos1[idx].copy(), vel[idx].copy(), inv_mass[idx].copy()
+    _, impulses, left = resolve_crossings(sub, e2, p0, p1, v, im, DT, MARGIN * 1e-3, 20, None)
+    assert impulses == 1 and left == 0
+    assert crossings(sub, e2, p0, p1) == 0
+
+
+def test_a_zone_with_a_held_node_moves_with_the_hub():
+    """The bottom bar held on a hub that turns by 0.05 rad about the z axis over the step
+    (the column 2 m from it): the zone of the dropping bar takes the hub's motion, its free
+    nodes end where the turn takes them (to 1e-12 m), and no pair crosses."""
+    from spinweb_fe.fe.zones import axis_map
+
+    pairs, elems, pos0, pos1, vel, inv_mass = column()
+    pos0 += (2.0, 0.0, 0.0)
+    hub = axis_map(0.05)
+    pos1 = pos0 + DT * vel
+    inv_mass[[0, 1]] = 0.0
+    pos1[[0, 1]] = pos0[[0, 1]] @ hub[:3].T
+    vel[[0, 1]] = (pos1[[0, 1]] - pos0[[0, 1]]) / DT
+    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT, hub=hub)
+    assert zones >= 1 and left == 0
+    assert crossings(pairs, elems, pos0, pos1) == 0
+    moved = np.abs(vel).sum(1) > 0  # the zone's nodes (the others rest)
+    assert moved[-2:].all()
+    assert np.abs(pos1[moved] - pos0[moved] @ hub[:3].T).max() < 1e-12
