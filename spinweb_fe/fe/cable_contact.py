@@ -50,7 +50,8 @@ from spinweb_fe.fe.crossing import (boxes_apart, closest_nodes, closest_points,
                                     moved_crosses, pair_crossings, swept_boxes)
 from spinweb_fe.fe.impulses import (axial_impulse, body_reaction, friction_impulses,
                                    impulse_work)
-from spinweb_fe.fe.zones import ZONE_ROUNDS, axis_map, body_map, impact_zones
+from spinweb_fe.fe.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
+                                pair_adjacency, pairs_of)
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
 KAPPA = 0.25
@@ -386,10 +387,16 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     scratch, cuts = np.empty((4, 3)), np.empty(4)
     taken, impulses, left = 0.0, 0, 0
     moved = np.ones(pos0.shape[0], np.bool_)
+    todo = np.arange(pairs.shape[0])
+    adj = (todo, todo, todo)
     for rnd in range(rounds):
         now = np.zeros(pos0.shape[0], np.bool_)
         left = 0
-        for p in range(pairs.shape[0]):
+        if rnd == 1:  # the pairs of each node, for the passes after the first (fe.zones)
+            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
+        if rnd >= 1:
+            todo = pairs_of(adj, moved, rnd)
+        for p in todo:
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
@@ -448,6 +455,8 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if left == 0:
             break
     if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
+        if rounds == 1:
+            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
-                               zone_rounds, hub)
+                               zone_rounds, hub, moved, adj)
     return taken, impulses, left

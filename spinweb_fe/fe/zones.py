@@ -37,6 +37,55 @@ ZONE_ROUNDS = 20
 
 
 @njit(cache=True)
+def pair_adjacency(pairs, elem_nodes, n):
+    """(ptr (n + 1,), idx, stamp (P,) -1): for each of the ``n`` nodes the pairs with an
+    element that has it (idx[ptr[i]:ptr[i + 1]], by a counting sort), and a scratch for
+    :func:`pairs_of`. Later passes of the fail-safe and of the zones test only the pairs
+    of the nodes the last pass moved, not the whole list (stacked columns list 1e5-1e6
+    pairs, and a pass over them all cost milliseconds)."""
+    ptr = np.zeros(n + 1, np.int64)
+    for p in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[p, side]
+            ptr[elem_nodes[e, 0] + 1] += 1
+            ptr[elem_nodes[e, 1] + 1] += 1
+    for i in range(n):
+        ptr[i + 1] += ptr[i]
+    fill = ptr[:-1].copy()
+    idx = np.empty(ptr[n], np.int64)
+    for p in range(pairs.shape[0]):
+        for side in range(2):
+            e = pairs[p, side]
+            for i in (elem_nodes[e, 0], elem_nodes[e, 1]):
+                idx[fill[i]] = p
+                fill[i] += 1
+    return ptr, idx, np.full(pairs.shape[0], -1, np.int64)
+
+
+@njit(cache=True)
+def pairs_of(adj, moved, tick):
+    """The pairs (sorted) with a node in ``moved`` (n,) bool, each once (``adj`` from
+    :func:`pair_adjacency`; ``tick``: a mark not used before in this step's passes)."""
+    ptr, idx, stamp = adj
+    count = 0
+    for i in range(moved.shape[0]):
+        if moved[i]:
+            count += ptr[i + 1] - ptr[i]
+    out = np.empty(count, np.int64)
+    k = 0
+    for i in range(moved.shape[0]):
+        if not moved[i]:
+            continue
+        for q in range(ptr[i], ptr[i + 1]):
+            p = idx[q]
+            if stamp[p] != tick:
+                stamp[p] = tick
+                out[k] = p
+                k += 1
+    return np.sort(out[:k])
+
+
+@njit(cache=True)
 def _root(parent, i):
     """The zone of node i (union-find with path halving)."""
     while parent[i] != i:
@@ -155,23 +204,28 @@ def hub_zone(members, pos1, vel, inv_mass, dt, hub):
 
 @njit(cache=True)
 def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_ROUNDS,
-                 hub=None):
+                 hub=None, moved=None, adj=None):
     """Zones of the pairs still crossing over the step from ``pos0`` to ``pos1`` (module
     docstring), moved rigidly, grown until no listed pair crosses (at most ``rounds``
     passes; ``hub`` (4, 3): the hub's map over the step for the zones with a node of the
-    hub, None: those stay). Returns (zones moved in the last pass that moved any, crossings
-    left: those of the last test)."""
+    hub, None: those stay; ``moved`` (n,) bool: the nodes whose pairs may cross, those the
+    fail-safe's last pass moved, None: all; ``adj``: :func:`pair_adjacency`'s, None: built
+    here). Returns (zones moved in the last pass that moved any, crossings left: those of
+    the last test)."""
     n = pos0.shape[0]
     parent = np.arange(n)
     zoned = np.zeros(n, np.bool_)
-    moved = np.ones(n, np.bool_)
+    if moved is None:
+        moved = np.ones(n, np.bool_)
+    if adj is None:
+        adj = pair_adjacency(pairs, elem_nodes, n)
     times = np.empty(3)
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
     left, zones = 0, 0
     for rnd in range(rounds + 1):
         left = 0
-        for p in range(pairs.shape[0]):
+        for p in pairs_of(adj, moved, -2 - rnd):  # (marks apart from the fail-safe's)
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
