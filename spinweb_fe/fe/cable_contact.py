@@ -48,8 +48,8 @@ from numba import njit
 
 from spinweb_fe.fe.crossing import (boxes_apart, closest_nodes, closest_points,
                                     moved_crosses, pair_crossings, swept_boxes)
-from spinweb_fe.fe.impulses import (axial_impulse, body_reaction, friction_impulses,
-                                   impulse_work)
+from spinweb_fe.fe.impulses import (body_reaction, friction_impulses, impulse_work,
+                                   node_impulse)
 from spinweb_fe.fe.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
                                 pair_adjacency, pairs_of)
 
@@ -259,7 +259,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
         total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass)
         if rate is not None:
-            dw = -axial_impulse(pos, ck.vel1, vel, inv_mass, dt) / inertia[0]
+            dw = -node_impulse(pos, ck.vel1, vel, inv_mass, dt)[1][2] / inertia[0]
             # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
             total -= inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
             rate[0] += dw

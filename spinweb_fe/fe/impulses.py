@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.rigid import cross, dot, hub_centre, inv_inertia, mul_t, rotation, turn
+from spinweb_fe.fe.rigid import (cross, dot, hub_centre, inv_inertia, mul_t, normalise,
+                                rotation, turn)
 
 
 @njit(cache=True)
@@ -66,24 +67,6 @@ def friction_impulses(pairs, elem_nodes, hold, pos0, pos1, vel, inv_mass, dt, mu
 
 
 @njit(cache=True)
-def axial_impulse(pos, before, after, inv_mass, dt):
-    """sum m (y x (after - before))_z over the free nodes [N m s], y = x_{n+1} - dt
-    v_{n+1/2} at the end positions ``pos`` (x_n for a node that moved freely): the angular
-    impulse about the z axis that changed their v_{n+1/2} from ``before`` to ``after`` (and
-    x_{n+1} by dt times that; the angular momentum the step keeps is sum m x_{n+1} x
-    v_{n+1/2}, which changes by y x m dv)."""
-    out = 0.0
-    for i in range(before.shape[0]):
-        if inv_mass[i] == 0.0:
-            continue
-        d0, d1 = after[i, 0] - before[i, 0], after[i, 1] - before[i, 1]
-        if d0 != 0.0 or d1 != 0.0:
-            y0, y1 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1]
-            out += (y0 * d1 - y1 * d0) / inv_mass[i]
-    return out
-
-
-@njit(cache=True)
 def impulse_work(before, after, start, inv_mass):
     """sum m (after - before) . (start + after) / 2 over the free nodes [J]: the work of the
     impulses that changed v_{n+1/2} from ``before`` to ``after``, paired with v_{n-1/2}
@@ -104,27 +87,28 @@ def impulse_work(before, after, start, inv_mass):
 @njit(cache=True)
 def node_impulse(pos, before, after, inv_mass, dt):
     """(J, H): sum m (after - before) [N s] and sum m y x (after - before) [N m s] over the
-    free nodes, y = x_{n+1} - dt v_{n+1/2} at the end positions ``pos`` (see
-    :func:`axial_impulse`): the linear and angular impulse (about the origin) that changed
-    their v_{n+1/2}."""
+    free nodes, y = x_{n+1} - dt v_{n+1/2} at the end positions ``pos`` (x_n for a node
+    that moved freely): the linear and angular impulse (about the origin) that changed
+    their v_{n+1/2} (and x_{n+1} by dt times that; the angular momentum the step keeps is
+    sum m x_{n+1} x v_{n+1/2}, which changes by y x m dv). A fixed axis takes H's z part."""
     J = np.zeros(3)
     H = np.zeros(3)
     for i in range(before.shape[0]):
         if inv_mass[i] == 0.0:
             continue
-        m = 1.0 / inv_mass[i]
         d0, d1, d2 = after[i, 0] - before[i, 0], after[i, 1] - before[i, 1], \
             after[i, 2] - before[i, 2]
         if d0 == 0.0 and d1 == 0.0 and d2 == 0.0:
             continue
         y0, y1, y2 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1], \
             pos[i, 2] - dt * after[i, 2]
-        J[0] += m * d0
-        J[1] += m * d1
-        J[2] += m * d2
-        H[0] += m * (y1 * d2 - y2 * d1)
-        H[1] += m * (y2 * d0 - y0 * d2)
-        H[2] += m * (y0 * d1 - y1 * d0)
+        im = inv_mass[i]
+        J[0] += d0 / im
+        J[1] += d1 / im
+        J[2] += d2 / im
+        H[0] += (y1 * d2 - y2 * d1) / im
+        H[1] += (y2 * d0 - y0 * d2) / im
+        H[2] += (y0 * d1 - y1 * d0) / im
     return J, H
 
 
@@ -155,10 +139,7 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt):
     size = np.sqrt(dot(dw, dw))
     if size > 0.0:
         turn(rs.quaternion, mul_t(R, dw) / size, dt * size)
-        q = rs.quaternion
-        qn = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-        for k in range(4):
-            q[k] /= qn
+        normalise(rs.quaternion)
     return (dot(-J, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5
 
 

@@ -117,6 +117,14 @@ def turn(q, a, theta):
 
 
 @njit(cache=True)
+def normalise(q):
+    """q <- q / |q| (the attitude quaternion, in place, after a turn)."""
+    qn = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    for k in range(4):
+        q[k] /= qn
+
+
+@njit(cache=True)
 def cross(a, b):
     """a x b of two 3-vectors."""
     out = np.empty(3)
@@ -347,9 +355,7 @@ def free_rotation(rs, dt):
         m[i] = ct * mi + st * mj
         m[j] = -st * mi + ct * mj
         turn(q, P[:, k].copy(), theta)
-    qn = np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-    for k in range(4):
-        q[k] /= qn
+    normalise(q)
 
 
 @njit(cache=True)

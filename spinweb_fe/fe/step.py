@@ -240,13 +240,12 @@ def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
     the tied and held nodes are placed again. Returns the hub's angle [rad]."""
     if axis is not None:
         theta = hs.angle[0] + dt * dw
-        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, theta, hs.rate[0])
-        if any_held(coil.arm_ptr, cs.front):
-            place_held(coil, cs, pos, vel, theta, hs.rate[0])
     if body is not None:
-        place_body(hub, coil, cs, rs, pos, vel)
-        hs.rate[0], hs.inertia[0] = body_state(rs)
         theta = twist(rs.quaternion, hs.angle[0])
+        hs.rate[0], hs.inertia[0] = body_state(rs)
+    place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, hs.rate[0])
+    if any_held(coil.arm_ptr, cs.front):
+        place_coil(axis, coil, cs, pos, vel, theta, hs.rate[0])
     return theta
 
 
