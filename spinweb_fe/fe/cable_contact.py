@@ -177,10 +177,11 @@ class ContactKernel(NamedTuple):
     [rad] at the step's start, or a free hub's velocity [m/s], angular velocity [rad/s],
     hub centre [m] and attitude quaternion there (fe.impulses.body_snapshot); force
     (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
-    elements with a released end, the swept boxes [m] of the last step); radius [m], kappa, margin
-    [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (8,): stored energy
-    [J], pairs in contact, deepest penetration [m] now and over the run, energy the
-    fail-safe took [J], its impulses, crossings it left, energy the friction took [J]; rows
+    elements its broad phase takes, the swept boxes [m] of the last step); radius [m],
+    kappa, margin [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (9,):
+    stored energy [J], pairs in contact, deepest penetration [m] now and over the run,
+    energy the fail-safe took [J], its impulses, crossings it left, energy the friction
+    took [J], impulses of the passes after a reaction of the hub (fe.step.settle); rows
     (R, 2): stored energy and dissipation (fail-safe and friction) at each history row [J].
     """
 
@@ -207,7 +208,7 @@ class ContactKernel(NamedTuple):
 
 
 #: ContactKernel.stats slots
-ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION = range(8)
+ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION, AGAIN = range(9)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -227,7 +228,7 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
-                    theta=0.0):
+                    theta=0.0, again=False):
     """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
@@ -238,20 +239,28 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     ``body`` (fe.rigid.RigidState, a free hub): the body takes the impulse and the moment
     (fe.impulses.body_reaction; ``ck.spin[1]`` 1 when it did). The hub's motion over the
     step (the fixed axis's turn to ``theta`` [rad], or the body's) moves the free nodes of
-    an impact zone that holds a node of the hub (fe.zones)."""
+    an impact zone that holds a node of the hub (fe.zones). ``again``: a pass after the
+    hub, having taken a reaction, placed its nodes again (fe.step.settle): only the pairs
+    of those nodes (inv_mass 0) are tested, without the friction."""
     ck.vel1[:] = vel
-    rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0
+    ck.spin[1] = 0.0
+    rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
     if rubbed:
         friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
                           ck.mu)
         ck.vel2[:] = vel
-    swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
     if rate is not None:
         hub = axis_map(theta - ck.spin[2])
     else:
         hub = body_map(body, ck.spin[8:16])
-    _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass, dt,
-                                   ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub)
+    if again:
+        _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
+                                       dt, ck.margin, ck.rounds, None, ZONE_ROUNDS, hub,
+                                       inv_mass == 0.0)
+    else:
+        swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
+        _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
+                                       dt, ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub)
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
         # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
@@ -272,6 +281,8 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         ck.stats[TAKEN] += total - rub
     ck.stats[IMPULSES] += n
     ck.stats[LEFT] += left
+    if again:
+        ck.stats[AGAIN] += n
     return n, left
 
 
@@ -293,7 +304,7 @@ class CableContact:
         self.force = np.zeros((model.n_nodes, 3))
         self.vel0, self.vel1, self.vel2 = (np.zeros((model.n_nodes, 3)) for _ in range(3))
         self.share = np.zeros(model.n_nodes, np.int64)
-        self.stats = np.zeros(8)
+        self.stats = np.zeros(9)
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
 
     def sync(self, codes, dist):
@@ -348,6 +359,12 @@ class CableContact:
         return int(self.stats[IMPULSES])
 
     @property
+    def impulses_after_reactions(self) -> int:
+        """Pair impulses of the passes after the hub placed its nodes again (of
+        :attr:`impulses`)."""
+        return int(self.stats[AGAIN])
+
+    @property
     def unresolved(self) -> int:
         """Crossings the fail-safe's rounds left (the audit counts them)."""
         return int(self.stats[LEFT])
@@ -365,7 +382,7 @@ def cable_radius(case, model) -> float:
 
 @njit(cache=True)
 def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
-                      box=None, zone_rounds=ZONE_ROUNDS, hub=None):
+                      box=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.crossing's exact test) gets an impulse along the normal of the two
@@ -380,16 +397,20 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     (fe.crossing.swept_boxes) for the first pass. If the rounds run out with crossings
     left, the pairs still crossing move as impact zones (fe.zones: at most
     ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
-    with a node of the hub). Returns (kinetic energy the pair impulses took [J], pair
-    impulses, crossings left)."""
+    with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
+    a pass found the rest of the list clear (the hub's nodes, placed again after it took a
+    reaction): the first pass tests only their pairs. Returns (kinetic energy the pair
+    impulses took [J], pair impulses, crossings left)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
     taken, impulses, left = 0.0, 0, 0
-    moved = np.ones(pos0.shape[0], np.bool_)
+    first = 0 if moved is None else 1  # (a later pass's test from the start)
+    if moved is None:
+        moved = np.ones(pos0.shape[0], np.bool_)
     todo = np.arange(pairs.shape[0])
     adj = (todo, todo, todo)
-    for rnd in range(rounds):
+    for rnd in range(first, rounds):
         now = np.zeros(pos0.shape[0], np.bool_)
         left = 0
         if rnd == 1:  # the pairs of each node, for the passes after the first (fe.zones)
@@ -455,7 +476,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if left == 0:
             break
     if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
-        if rounds == 1:
+        if rounds == 1 and first == 0:
             adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
                                zone_rounds, hub, moved, adj)

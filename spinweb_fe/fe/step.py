@@ -44,7 +44,8 @@ from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
-from spinweb_fe.fe.touch import SERVICE, touch_begin, touch_end, touch_row
+from spinweb_fe.fe.cable_contact import contact_resolve
+from spinweb_fe.fe.touch import REACTIONS, SERVICE, touch_begin, touch_end, touch_row
 from spinweb_fe.fe.vectors import node_momenta, plane_stats
 
 
@@ -235,7 +236,7 @@ def hub_now(axis, body, rs, kick, j_eff):
 
 @njit(inline="always")
 def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
-    """After the hub took the reaction of the contact's impulses (fe.touch.touch_end): a
+    """After the hub took the reaction of the contact's impulses (:func:`settle`): a
     fixed axis turns by dt times its rate's change ``dw``, a free body has turned itself;
     the tied and held nodes are placed again. Returns the hub's angle [rad]."""
     if axis is not None:
@@ -247,6 +248,30 @@ def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
     if any_held(coil.arm_ptr, cs.front):
         place_coil(axis, coil, cs, pos, vel, theta, hs.rate[0])
     return theta
+
+
+@njit(inline="always")
+def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
+    """The contact's fail-safe at the step's end (fe.cable_contact.contact_resolve). When its
+    impulses pushed on the hub, the hub takes the reaction and places its tied and held
+    nodes again (:func:`reacted`), and the pairs those nodes have are tested again, at most
+    fe.touch.REACTIONS passes in all (a crossing the last placing makes is the audit's).
+    Returns (fresh, clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
+    fresh, clean = True, True
+    for k in range(REACTIONS):
+        if axis is not None:
+            n, left = contact_resolve(contact, pos, vel, inv_mass, dt, hs.rate, hs.inertia,
+                                      None, hs.angle[0], k > 0)
+        else:
+            n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
+                                      hs.angle[0], k > 0)
+        fresh = fresh and n == 0 and contact.spin[1] == 0.0
+        clean = fresh and left == 0
+        if contact.spin[1] == 0.0:
+            break
+        hs.angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, contact.spin[1],
+                              dt)
+    return fresh, clean
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -447,16 +472,11 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if holding:  # the reels and brakes let their lines out
             device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs,
                          (step + 1) * dt, dt)
-        if axis is not None:
-            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front,
-                             hub_rate, hub_inertia)
-        else:
-            stop = touch_end(audit, contact, pos, vel, inv_mass, hub_angle[0], t, dt, front,
-                             None, None, rs)
-        if contact is not None and contact.spin[1] != 0.0:  # the fail-safe's reaction
-            hub_angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs,
-                                   contact.spin[1], dt)
-        if stop:
+        fresh, clean = False, False
+        if contact is not None:
+            fresh, clean = settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass,
+                                  hs, dt)
+        if touch_end(audit, pos, hub_angle[0], t, dt, front, fresh, clean):
             return SERVICE, nrec
     return 0, nrec
 

@@ -8,8 +8,10 @@ a scene without them compiles and runs as before):
                  forces at x_n kick the free nodes' v_{n-1/2} (part of f_n)
     row          the audit's count, the contact's stored energy and dissipation so far
     step end     the contact's fail-safe (impulses at the exact crossing time, after the whole
-                 step: the hub's placing of tied and held nodes included); then the audit's
-                 exact test of the step, and whether its candidate list is still valid
+                 step: the hub's placing of tied and held nodes included; when the hub
+                 takes a reaction and places its nodes again, the pairs they have are
+                 tested again: fe.step.settle); then the audit's exact test of the step
+                 (the motion the step ends with), and whether its list is still valid
 
 The loop stops after a step (status :data:`SERVICE`) when the audit's list has gone stale (a
 node moved more than :data:`REBUILD` of the skin in the hub's frame since the build, or a
@@ -31,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.cable_contact import contact_push, contact_resolve, contact_row
+from spinweb_fe.fe.cable_contact import contact_push, contact_row
 from spinweb_fe.fe.crossing import boxed_crossings, candidate_pairs, moved_since, swept_boxes
 from spinweb_fe.fe.impulses import body_snapshot
 
@@ -42,6 +44,9 @@ LOG_PER_STEP = 64
 #: the list is rebuilt after a step that left a node this share of the skin from its place
 #: at the build (hub's frame)
 REBUILD = 0.75
+#: passes of the contact's fail-safe per step at most: the first, and one after each
+#: reaction of the hub (its tied and held nodes placed again, fe.step.settle)
+REACTIONS = 4
 #: a step that takes a node beyond this share of the skin is tested on a list of its own
 #: (the rest of the skin covers the chord of a turning frame: a node at radius rho strays
 #: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the hub by
@@ -144,7 +149,6 @@ def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, th
             contact.spin[2] = theta
         if body is not None:
             body_snapshot(body, contact.spin[2:16])
-        contact.spin[1] = 0.0
         contact_push(contact, pos, vel, inv_mass, dt)
 
 
@@ -158,16 +162,9 @@ def touch_row(audit, contact, k):
 
 
 @njit(inline="always")
-def touch_end(audit, contact, pos, vel, inv_mass, theta, t0, dt, fronts, rate=None,
-              inertia=None, body=None):
-    """Step end: the fail-safe (a fixed axis's ``rate`` and ``inertia``, or a free hub's
-    ``body``, take its reaction), then the audit. True: stop for Python."""
-    fresh, clean = False, False
-    if contact is not None:
-        impulses, left = contact_resolve(contact, pos, vel, inv_mass, dt, rate, inertia, body,
-                                         theta)
-        fresh = impulses == 0
-        clean = fresh and left == 0
+def touch_end(audit, pos, theta, t0, dt, fronts, fresh=False, clean=False):
+    """Step end, after the contact's fail-safe (fe.step.settle; ``fresh``, ``clean`` as
+    :func:`audit_step` takes them): the audit. True: stop for Python."""
     if audit is not None:
         return audit_step(audit, pos, theta, t0, dt, fronts, fresh, clean)
     return False

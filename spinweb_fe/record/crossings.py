@@ -7,9 +7,13 @@ nodes move on straight lines over a step, as the central-difference update moves
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
 phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
 since the last build (distances do not change in a rigidly turning frame, so the spin
-itself never forces a rebuild), or when a held level went free. Which elements take part:
+itself never forces a rebuild), or when a held level went free. Which pairs take part:
 
-- only released material: an element with both ends held on the coil moves with the hub;
+- every element, the coil's held ones and the hub's tied ones too (released cables sweep
+  over the coil and through the hub's frame: a list of released material alone let them
+  pass through it unseen, docs/contact.md), but no pair of two elements that both move
+  with the hub (both ends held or tied): those cannot cross while they are held, and a
+  level that goes free rebuilds the list;
 - a pair closer than ``touch`` [m] when it enters the list (the star fold's stacked layers
   start coincident, z = 0, without a layer gap, and leave the coil so) is left out until
   it is farther apart than the skin at a rebuild: two coincident cables have no side of
@@ -101,9 +105,12 @@ class CrossingAudit:
         step loop's view of it (:attr:`kernel`, with room for ``rows`` history rows a
         call)."""
         pos = state.node_pos
-        held = held_nodes(self.model, state)
-        active = ~(held[self.elem_nodes[:, 0]] & held[self.elem_nodes[:, 1]])
+        bound = held_nodes(self.model, state)
+        bound[self.model.hub.tied_idx] = True
+        rigid = bound[self.elem_nodes[:, 0]] & bound[self.elem_nodes[:, 1]]
+        active = np.ones(len(self.elem_nodes), bool)
         pairs = candidate_pairs(pos, self.elem_nodes, active, self.skin)
+        pairs = pairs[~(rigid[pairs[:, 0]] & rigid[pairs[:, 1]])]
         dist = pair_distances(pairs, self.elem_nodes, pos)
         code = self._code(pairs)
         # a pair that enters the list touching is left out; one left out stays out until

@@ -261,13 +261,17 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
 
 def _crossing_table(writer, crossings, contact=None):
     """The crossing audit's /crossings table into results.h5, with the cable contact's radius
-    and deepest penetration [m] as attributes when it ran (a failure is reported)."""
+    and deepest penetration [m] and its fail-safe's impulses (of them, those of the passes
+    after a reaction of the hub) as attributes when it ran (a failure is reported)."""
     try:
         writer.drain()
         write_crossings(writer.h5, crossings)
         if contact is not None:
             writer.h5["crossings"].attrs["contact_radius"] = contact.radius
             writer.h5["crossings"].attrs["deepest_penetration"] = contact.deepest_run
+            writer.h5["crossings"].attrs["contact_impulses"] = contact.impulses
+            writer.h5["crossings"].attrs["impulses_after_reactions"] = \
+                contact.impulses_after_reactions
         writer.h5.flush()
         log.info("crossings: %d (broad phase built %d times)", crossings.count,
                  crossings.rebuilds)
