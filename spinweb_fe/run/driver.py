@@ -179,9 +179,11 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
 def check_touch(case, model, state) -> None:
     """Refuse what the crossing audit and the cable contact cannot do (InputError): a scene
     that cannot leave the plane (its cables cannot cross, and the layers of a planar fold
-    coincide, where contact is undefined), and a contact radius above half the layer gap
+    coincide, where contact is undefined), a contact radius above half the layer gap
     (stacked layers would start inside each other's reach; a radius that is not positive
-    the case's schema refuses)."""
+    the case's schema refuses), and contact on a scene whose elements start closer than
+    the audit's touch distance (coincident layers, or a displacement perturbation that
+    moved stacked layers through each other: contact between them is undefined)."""
     touching, auditing = case.contact.cables, case.audit.crossings
     if not (touching or auditing):
         return
@@ -200,6 +202,21 @@ def check_touch(case, model, state) -> None:
             raise InputError(case.source, "contact.cable_radius",
                              f"{name} {radius:.6g} m is more than half fold.layer_gap "
                              f"({gap:.6g} m): stacked layers would start in contact")
+        start = CrossingAudit(model, case.audit.skin, case.audit.touch)
+        start.build(state)
+        if len(start.ignored):
+            key, why = "fold.layer_gap", "the layer gap is below audit.touch"
+            if gap == 0.0:
+                why = "the fold's layers coincide; give fold.layer_gap"
+            elif case.perturbation.z_amplitude != 0.0:
+                key = "perturbation.z_amplitude"
+                why = ("the perturbation moves stacked layers unequally (the tied nodes "
+                       "stay) and puts them through each other; perturb by velocity "
+                       "(perturbation.vz_amplitude) instead")
+            raise InputError(case.source, key,
+                             f"{len(start.ignored)} pairs of elements start closer than "
+                             f"audit.touch ({start.touch:g} m), where contact is undefined: "
+                             f"{why}")
 
 
 def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progress,
