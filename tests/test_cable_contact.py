@@ -168,8 +168,11 @@ def small_web(sets=()):
 def test_a_run_with_contact_books_its_energy_and_its_radius(tmp_path):
     """results.h5 of a run with contact.cables: the contact's energy terms in the history
     (with units; the balance closes with them), the crossing audit's table with the contact
-    radius (the cable's own, sqrt(A / pi), by default) and no crossing."""
+    radius (the cable's own, sqrt(A / pi), by default), the fail-safe's impulses and no
+    crossing; ``spinweb info`` prints them."""
     import h5py
+
+    from spinweb_fe.cli.info import summary
 
     from spinweb_fe.record.energy import balance_error
     from spinweb_fe.run.driver import run_case
@@ -189,7 +192,10 @@ def test_a_run_with_contact_books_its_energy_and_its_radius(tmp_path):
     area = float(np.max(model.elements.ea)) / case.cable.youngs_modulus
     assert a["contact_radius"] == pytest.approx(math.sqrt(area / math.pi), rel=1e-12)
     assert 1e-4 < a["contact_radius"] < 1e-2
+    assert a["contact_impulses"] >= a["impulses_after_reactions"] >= 0
     assert balance_error(h) < 1e-3
+    assert f"contact: radius {a['contact_radius']:.6g} m" in \
+        summary(tmp_path / "c" / "results.h5")
 
 
 def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():

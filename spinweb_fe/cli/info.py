@@ -71,6 +71,12 @@ def audit_lines(h5) -> list:
         first = f", the first at t = {t.min():.6g} s" if len(t) else ""
         lines.append(f"crossings: {int(g.attrs['count'])}{first} (broad phase built "
                      f"{int(g.attrs['rebuilds'])} times)")
+        if "contact_impulses" in g.attrs:
+            lines.append(f"contact: radius {float(g.attrs['contact_radius']):.6g} m, deepest "
+                         f"penetration {float(g.attrs['deepest_penetration']):.6g} m, "
+                         f"{int(g.attrs['contact_impulses'])} fail-safe impulses "
+                         f"({int(g.attrs['impulses_after_reactions'])} after the hub's "
+                         "reactions)")
     if "linking" in h5:
         g = h5["linking"]
         t, changed = g["time"][()], int(g.attrs["changed_total"])
