@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.crossing import candidate_pairs, pair_crossings, step_crossings
+from spinweb_fe.fe.crossing import RIGID, candidate_pairs, pair_crossings, step_crossings
 
 DT = 4.6e-5  # the paper web's step at cfl 0.2 [s]
 
@@ -113,7 +113,11 @@ def test_against_dense_sampling_including_two_crossings_in_one_step():
     assert twice >= 3
 
 
-def test_broad_phase_lists_what_a_brute_force_box_test_lists():
+@pytest.mark.parametrize("with_rigid", [False, True])
+def test_broad_phase_lists_what_a_brute_force_box_test_lists(with_rigid):
+    """The hash grid against every pair's box test; with elements marked RIGID (moving with
+    the hub, in a grid of their own), no pair of two of them and every other pair as
+    before, in the same (code) order."""
     rng = np.random.default_rng(11)
     n = 300
     pos = rng.uniform(0, 6, size=(n, 3))
@@ -121,16 +125,23 @@ def test_broad_phase_lists_what_a_brute_force_box_test_lists():
                      [(i, int(j)) for i, j in zip(range(0, n, 3), rng.integers(0, n, n // 3))
                       if i != j])
     elems = elems[np.linalg.norm(pos[elems[:, 0]] - pos[elems[:, 1]], axis=1) < 3.0]
-    active = np.ones(len(elems), bool)
-    active[::7] = False
+    active = np.ones(len(elems), np.int8)
+    active[::7] = 0
+    if with_rigid:
+        active[1::3] = RIGID
     skin = 0.2
-    got = {tuple(p) for p in candidate_pairs(pos, elems, active, skin)}
+    listed = candidate_pairs(pos, elems, active, skin)
+    codes = listed[:, 0] * len(elems) + listed[:, 1]
+    assert np.all(np.diff(codes) > 0)
+    got = {tuple(p) for p in listed}
     lo = np.minimum(pos[elems[:, 0]], pos[elems[:, 1]]) - skin
     hi = np.maximum(pos[elems[:, 0]], pos[elems[:, 1]]) + skin
     want = set()
     for e in range(len(elems)):
         for f in range(e + 1, len(elems)):
             if not (active[e] and active[f]) or set(elems[e]) & set(elems[f]):
+                continue
+            if active[e] == active[f] == RIGID:
                 continue
             if np.all(lo[e] <= hi[f]) and np.all(lo[f] <= hi[e]):
                 want.add((e, f))

@@ -153,17 +153,22 @@ def pair_crossings(a0, a1, b0, b1, c0, c1, d0, d1, times, signs, w=None, cuts=No
 GRID_SPAN = 2097152
 
 
+#: ``active`` of the broad phase: an element that moves with the hub (held, tied)
+RIGID = 2
+
+
 @njit(cache=True)
-def grid_entries(lo, hi, active, cell, origin, count):
-    """(keys, owners, n): every ``active`` box (rows of ``lo``, ``hi``) in each cell of the
-    uniform grid of size ``cell`` from ``origin`` that it touches, as n (cell key, box)
-    entries (``count``: room for at least that many)."""
+def grid_entries(lo, hi, active, cell, origin, count, rigid=False):
+    """(keys, owners, n): every ``active`` box (rows of ``lo``, ``hi``; with ``rigid``, only
+    those marked :data:`RIGID`, else only the others) in each cell of the uniform grid of
+    size ``cell`` from ``origin`` that it touches, as n (cell key, box) entries (``count``:
+    room for at least that many)."""
     big = np.int64(GRID_SPAN)
     keys = np.empty(count, np.int64)
     owners = np.empty(count, np.int64)
     n_ent = 0
     for e in range(lo.shape[0]):
-        if not active[e]:
+        if not active[e] or (active[e] == RIGID) != rigid:
             continue
         i0 = np.int64((lo[e, 0] - origin[0]) / cell)
         j0 = np.int64((lo[e, 1] - origin[1]) / cell)
@@ -181,9 +186,50 @@ def grid_entries(lo, hi, active, cell, origin, count):
 
 
 @njit(cache=True)
+def _cell_partners(e, lo, hi, elem_nodes, skeys, sowners, cell, origin, seen, row, n_row):
+    """Element e's partners of higher index (boxes overlapping, no common node, each once:
+    ``seen``) among the grid's entries (``skeys`` sorted, ``sowners``) of the cells e's box
+    touches, appended to ``row`` from ``n_row``; returns the new count."""
+    big = np.int64(GRID_SPAN)
+    n_ent = skeys.shape[0]
+    ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
+    i0 = np.int64((lo[e, 0] - origin[0]) / cell)
+    j0 = np.int64((lo[e, 1] - origin[1]) / cell)
+    k0 = np.int64((lo[e, 2] - origin[2]) / cell)
+    i1 = np.int64((hi[e, 0] - origin[0]) / cell)
+    j1 = np.int64((hi[e, 1] - origin[1]) / cell)
+    k1 = np.int64((hi[e, 2] - origin[2]) / cell)
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            for k in range(k0, k1 + 1):
+                key = (i * big + j) * big + k
+                q = np.searchsorted(skeys, key)
+                while q < n_ent and skeys[q] == key:
+                    f = sowners[q]
+                    q += 1
+                    if f <= e or seen[f] == e:
+                        continue
+                    seen[f] = e
+                    fa, fb = elem_nodes[f, 0], elem_nodes[f, 1]
+                    if ea == fa or ea == fb or eb == fa or eb == fb:
+                        continue
+                    if (lo[e, 0] > hi[f, 0] or lo[f, 0] > hi[e, 0] or lo[e, 1] > hi[f, 1]
+                            or lo[f, 1] > hi[e, 1] or lo[e, 2] > hi[f, 2]
+                            or lo[f, 2] > hi[e, 2]):
+                        continue
+                    row[n_row] = f
+                    n_row += 1
+    return n_row
+
+
+@njit(cache=True)
 def candidate_pairs(pos, elem_nodes, active, skin):
-    """(P, 2) int64 element pairs (e < f, no common node, both ``active``) whose boxes,
-    widened by ``skin`` [m], overlap: the broad phase, through a uniform hash grid."""
+    """(P, 2) int64 element pairs (e < f, no common node, both ``active``, not both
+    :data:`RIGID`) whose boxes, widened by ``skin`` [m], overlap: the broad phase, through
+    a uniform hash grid. Elements that move with the hub go into a grid of their own, which
+    only the others search: two of them cannot cross while held, and a dense held coil
+    would otherwise cost the broad phase its own pairs (on the paper's coiled web most of
+    the rebuild's time)."""
     m = elem_nodes.shape[0]
     lo = np.empty((m, 3))
     hi = np.empty((m, 3))
@@ -202,14 +248,16 @@ def candidate_pairs(pos, elem_nodes, active, skin):
         for k in range(3):
             origin[k] = min(origin[k], lo[e, k])
     # every element into each cell its box touches (at most 2 per axis: the cell is at
-    # least the box's size), as (cell key, element) entries sorted by key
+    # least the box's size), as (cell key, element) entries sorted by key: the free
+    # elements' grid and the rigid ones'
     keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m)
     order = np.argsort(keys[:n_ent])
-    skeys = keys[order]
-    sowners = owners[order]
-    # then each element's partners of higher index from the cells it touches (each once:
-    # ``seen``), in ascending order: the list comes out sorted by code e * m + f
-    big = np.int64(GRID_SPAN)
+    free_keys, free_owners = keys[order], owners[order]
+    keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m, True)
+    order = np.argsort(keys[:n_ent])
+    rigid_keys, rigid_owners = keys[order], owners[order]
+    # then each element's partners of higher index from the cells it touches, in
+    # ascending order: the list comes out sorted by code e * m + f
     seen = np.full(m, -1, np.int64)
     row = np.empty(m, np.int64)
     out = np.empty((max(16, 8 * m), 2), np.int64)
@@ -217,34 +265,11 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     for e in range(m):
         if not active[e]:
             continue
-        ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
-        i0 = np.int64((lo[e, 0] - origin[0]) / cell)
-        j0 = np.int64((lo[e, 1] - origin[1]) / cell)
-        k0 = np.int64((lo[e, 2] - origin[2]) / cell)
-        i1 = np.int64((hi[e, 0] - origin[0]) / cell)
-        j1 = np.int64((hi[e, 1] - origin[1]) / cell)
-        k1 = np.int64((hi[e, 2] - origin[2]) / cell)
-        n_row = 0
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    key = (i * big + j) * big + k
-                    q = np.searchsorted(skeys, key)
-                    while q < n_ent and skeys[q] == key:
-                        f = sowners[q]
-                        q += 1
-                        if f <= e or seen[f] == e:
-                            continue
-                        seen[f] = e
-                        fa, fb = elem_nodes[f, 0], elem_nodes[f, 1]
-                        if ea == fa or ea == fb or eb == fa or eb == fb:
-                            continue
-                        if (lo[e, 0] > hi[f, 0] or lo[f, 0] > hi[e, 0] or lo[e, 1] > hi[f, 1]
-                                or lo[f, 1] > hi[e, 1] or lo[e, 2] > hi[f, 2]
-                                or lo[f, 2] > hi[e, 2]):
-                            continue
-                        row[n_row] = f
-                        n_row += 1
+        n_row = _cell_partners(e, lo, hi, elem_nodes, free_keys, free_owners, cell, origin,
+                               seen, row, 0)
+        if active[e] != RIGID:
+            n_row = _cell_partners(e, lo, hi, elem_nodes, rigid_keys, rigid_owners, cell,
+                                   origin, seen, row, n_row)
         if n_out + n_row > out.shape[0]:
             grown = np.empty((2 * (n_out + n_row), 2), np.int64)
             grown[:n_out] = out[:n_out]

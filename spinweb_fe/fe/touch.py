@@ -58,8 +58,9 @@ class AuditKernel(NamedTuple):
     """The crossing audit as the step loop sees it (record.crossings.CrossingAudit.kernel).
 
     elem_nodes (m, 2) int64; pairs (P, 2) int64: the candidate list; ignored (I,) int64:
-    sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) bool:
-    elements with a released end; ref (n, 3) [m]: the nodes at the build, in the hub's frame
+    sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) int8:
+    the broad phase's (1, or fe.crossing.RIGID for an element both of whose ends move with
+    the hub); ref (n, 3) [m]: the nodes at the build, in the hub's frame
     then; fronts (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the
     step; box (m, 6) [m]: the boxes the active elements swept over the last step
     (fe.crossing.swept_boxes; at the build, their boxes then); skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign

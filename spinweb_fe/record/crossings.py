@@ -30,7 +30,8 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.crossing import candidate_pairs, pair_distances, sorted_in, swept_boxes
+from spinweb_fe.fe.crossing import (RIGID, candidate_pairs, pair_distances, sorted_in,
+                                    swept_boxes)
 from spinweb_fe.fe.touch import LOG_PER_STEP, REBUILD, AuditKernel, audit_step
 
 #: largest default broad-phase skin [m]
@@ -108,9 +109,8 @@ class CrossingAudit:
         bound = held_nodes(self.model, state)
         bound[self.model.hub.tied_idx] = True
         rigid = bound[self.elem_nodes[:, 0]] & bound[self.elem_nodes[:, 1]]
-        active = np.ones(len(self.elem_nodes), bool)
+        active = np.where(rigid, RIGID, 1).astype(np.int8)
         pairs = candidate_pairs(pos, self.elem_nodes, active, self.skin)
-        pairs = pairs[~(rigid[pairs[:, 0]] & rigid[pairs[:, 1]])]
         dist = pair_distances(pairs, self.elem_nodes, pos)
         code = self._code(pairs)
         # a pair that enters the list touching is left out; one left out stays out until
