@@ -79,8 +79,10 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
     which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
     radius, or less for a pair that entered the list closer: it is raised to the largest
-    distance the pair has had, up to twice the radius, here). Pairs with a node that does
-    not move freely (inv_mass 0: held on the hub) are left out. A node in contact with
+    distance the pair has had, up to twice the radius, here). A node that does not move
+    freely (inv_mass 0: held on or tied to the hub, inside a bundle) takes its share of
+    the force like the others (the step hands it on: :func:`add_penalty`); a pair with no
+    free node is left out. A node in contact with
     several elements at once (a column of stacked layers) shares the step's stiffness
     among them: each pair's k is divided by the most contacts one of its nodes has now
     (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
@@ -96,7 +98,7 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         hold[:, 0] = 0.0
     reach_max = 2.0 * radius
     energy, count, deepest = 0.0, 0, 0.0
-    # first the pairs' closest points (NaN: a node not free; infinity: apart by their
+    # first the pairs' closest points (NaN: no node free; infinity: apart by their
     # boxes alone) and the contacts per node, then the push
     n_pairs = pairs.shape[0]
     ps, pt, pd = np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs)
@@ -111,9 +113,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         if far:
             pd[p] = np.inf
             continue
-        if inv_mass[a] == 0.0 or inv_mass[b] == 0.0 or inv_mass[c] == 0.0 \
-                or inv_mass[d] == 0.0:
-            pd[p] = np.nan
+        if max(inv_mass[a], inv_mass[b]) + max(inv_mass[c], inv_mass[d]) == 0.0:
+            pd[p] = np.nan  # no node moves freely
             continue
         ps[p], pt[p], pd[p] = closest_nodes(pos, a, b, c, d)
         if 0.0 < pd[p] < reach[p]:
@@ -157,13 +158,17 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
 
 
 @njit(cache=True)
-def kick(vel, force, inv_mass, dt):
-    """v += dt f / m for every node (the contact's share of the next step's kick)."""
-    for i in range(vel.shape[0]):
-        h = dt * inv_mass[i]
-        vel[i, 0] += h * force[i, 0]
-        vel[i, 1] += h * force[i, 1]
-        vel[i, 2] += h * force[i, 2]
+def add_penalty(ck, force):
+    """The penalty's forces at x_n (:func:`contact_push`) into the step's ``force`` (n, 3)
+    [N], after the cables': part of f_n, on every node. A node that does not move freely
+    hands its share on as it hands on the cables' (the hub's torque, the free body's force
+    and moment, a bundle's gathering), so a cable pushed off the held coil or the hub's
+    frame pushes the hub back, and the step's momenta stay in balance at every row."""
+    if ck.stats[IN_CONTACT] == 0:
+        return
+    for i in range(force.shape[0]):
+        for k in range(3):
+            force[i, k] += ck.force[i, k]
 
 
 class ContactKernel(NamedTuple):
@@ -213,8 +218,9 @@ ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION, AGAIN
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_push(ck, pos, vel, inv_mass, dt):
-    """The penalty forces at x_n and their kick of v_{n-1/2} (kept first: the impulses'
-    work at the step's end is paired with it)."""
+    """The penalty forces at x_n into ``ck.force`` (the step adds them to f_n:
+    :func:`add_penalty`), and v_{n-1/2} kept (the impulses' work at the step's end is
+    paired with it)."""
     ck.vel0[:] = vel
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
@@ -222,8 +228,6 @@ def contact_push(ck, pos, vel, inv_mass, dt):
                                                     ck.force, ck.share, ck.box, ck.hold)
     st[IN_CONTACT] = count
     st[DEEPEST_RUN] = max(st[DEEPEST_RUN], st[DEEPEST])
-    if count:
-        kick(vel, ck.force, inv_mass, dt)
 
 
 @njit(cache=True, no_cpython_wrapper=True)

@@ -44,7 +44,7 @@ from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
-from spinweb_fe.fe.cable_contact import contact_resolve
+from spinweb_fe.fe.cable_contact import add_penalty, contact_resolve
 from spinweb_fe.fe.touch import REACTIONS, SERVICE, touch_begin, touch_end, touch_row
 from spinweb_fe.fe.vectors import node_momenta, plane_stats
 
@@ -410,6 +410,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if has_field:
             field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
                         holding)
+        if contact is not None:  # the cable contact's penalty
+            add_penalty(contact, force)
         if has_coil:
             gather_bundles(bundles, cs, force)
         # loads on the hub and its kick

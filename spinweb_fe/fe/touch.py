@@ -5,7 +5,7 @@
 a scene without them compiles and runs as before):
 
     step start   x_n kept (the step's motion is tested from there); the contact's penalty
-                 forces at x_n kick the free nodes' v_{n-1/2} (part of f_n)
+                 forces at x_n, which the step adds to f_n (fe.cable_contact.add_penalty)
     row          the audit's count, the contact's stored energy and dissipation so far
     step end     the contact's fail-safe (impulses at the exact crossing time, after the whole
                  step: the hub's placing of tied and held nodes included; when the hub
@@ -137,7 +137,7 @@ def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
 
 @njit(inline="always")
 def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, theta=0.0):
-    """Step start: x_n kept, the contact's kick (``rate`` and ``theta``: a fixed axis's rate
+    """Step start: x_n kept, the contact's penalty forces (``rate`` and ``theta``: a fixed axis's rate
     and angle, ``body``: a free hub's state, whose velocities and pose are kept for the
     fail-safe's reaction and its zones)."""
     if audit is not None:
