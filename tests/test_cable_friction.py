@@ -100,10 +100,11 @@ def test_no_contact_no_friction():
 def test_a_run_with_friction_books_it_and_frictionless_is_unchanged():
     """The paper's feedback web folded with a 5 mm layer gap, with contact, 0.05 s (its
     layers touch as they unfold): friction 0 gives the bits of a case without the key;
-    friction 0.5 takes kinetic energy through its impulses (measured 1.21 kJ, against
-    0.06 kJ of the fail-safe's without it), booked so that the energy balance closes as
-    without friction (7.3e-5 both; tolerance 1e-3, the contact test's) and no crossing is
-    made."""
+    friction 0.5 takes kinetic energy through its impulses (measured 0.42 kJ, against
+    0.16 kJ of the fail-safe's without it; 1.21 and 0.06 kJ before the penalty pushed
+    against the held coil too, when the layers pressed harder: the penalty held 10 J or
+    more, now 1.4 J), booked so that the energy balance closes as without friction
+    (6-7e-5; tolerance 1e-3, the contact test's) and no crossing is made."""
     from support import layered_contact_run
 
     from spinweb_fe.record.energy import balance_error
@@ -111,7 +112,7 @@ def test_a_run_with_friction_books_it_and_frictionless_is_unchanged():
     zero, _, _ = layered_contact_run(["contact.friction=0.0"])
     for k in plain:
         assert np.array_equal(plain[k], zero[k]), k
-    assert c0.friction_dissipated == 0.0 and plain["cable_contact_energy"].max() > 10.0
+    assert c0.friction_dissipated == 0.0 and plain["cable_contact_energy"].max() > 1.0
     rough, c1, crossings = layered_contact_run(["contact.friction=0.5"])
     assert c1.friction_dissipated > 100.0
     assert rough["cable_contact_dissipation"][-1] == pytest.approx(c1.dissipated, rel=1e-12)
