@@ -37,6 +37,7 @@ from spinweb_fe.fe.axis import (NodeMotion, axis_devices, axis_field, axis_field
                                 axis_vector_row, place_rigid)
 from spinweb_fe.fe.body import (body_devices, body_drift, body_kick, body_nodes, body_release,
                                 body_row, body_start, body_state, twist)
+from spinweb_fe.fe.cable_contact import add_penalty, contact_resolve
 from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
                                 held_moment, payout_allowed, place_held, release_fronts,
                                 scatter_bundles)
@@ -44,7 +45,6 @@ from spinweb_fe.fe.forces import element_forces, node_forces
 from spinweb_fe.fe.payout import device_forces
 from spinweb_fe.fe.rigid import place_body
 from spinweb_fe.fe.rupture import record_strength, strength_pass
-from spinweb_fe.fe.cable_contact import add_penalty, contact_resolve
 from spinweb_fe.fe.touch import REACTIONS, SERVICE, touch_begin, touch_end, touch_row
 from spinweb_fe.fe.vectors import node_momenta, plane_stats
 
