@@ -157,6 +157,15 @@ GRID_SPAN = 2097152
 RIGID = 2
 
 
+@njit(inline="always")
+def _cell_span(lo, hi, e, cell, origin):
+    """The grid cells box e (rows of ``lo``, ``hi``) touches: (i0, j0, k0, i1, j1, k1),
+    first and last index per axis, of the uniform grid of size ``cell`` from ``origin``."""
+    return (np.int64((lo[e, 0] - origin[0]) / cell), np.int64((lo[e, 1] - origin[1]) / cell),
+            np.int64((lo[e, 2] - origin[2]) / cell), np.int64((hi[e, 0] - origin[0]) / cell),
+            np.int64((hi[e, 1] - origin[1]) / cell), np.int64((hi[e, 2] - origin[2]) / cell))
+
+
 @njit(cache=True)
 def grid_entries(lo, hi, active, cell, origin, count, rigid=False):
     """(keys, owners, n): every ``active`` box (rows of ``lo``, ``hi``; with ``rigid``, only
@@ -170,12 +179,7 @@ def grid_entries(lo, hi, active, cell, origin, count, rigid=False):
     for e in range(lo.shape[0]):
         if not active[e] or (active[e] == RIGID) != rigid:
             continue
-        i0 = np.int64((lo[e, 0] - origin[0]) / cell)
-        j0 = np.int64((lo[e, 1] - origin[1]) / cell)
-        k0 = np.int64((lo[e, 2] - origin[2]) / cell)
-        i1 = np.int64((hi[e, 0] - origin[0]) / cell)
-        j1 = np.int64((hi[e, 1] - origin[1]) / cell)
-        k1 = np.int64((hi[e, 2] - origin[2]) / cell)
+        i0, j0, k0, i1, j1, k1 = _cell_span(lo, hi, e, cell, origin)
         for i in range(i0, i1 + 1):
             for j in range(j0, j1 + 1):
                 for k in range(k0, k1 + 1):
@@ -193,12 +197,7 @@ def _cell_partners(e, lo, hi, elem_nodes, skeys, sowners, cell, origin, seen, ro
     big = np.int64(GRID_SPAN)
     n_ent = skeys.shape[0]
     ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
-    i0 = np.int64((lo[e, 0] - origin[0]) / cell)
-    j0 = np.int64((lo[e, 1] - origin[1]) / cell)
-    k0 = np.int64((lo[e, 2] - origin[2]) / cell)
-    i1 = np.int64((hi[e, 0] - origin[0]) / cell)
-    j1 = np.int64((hi[e, 1] - origin[1]) / cell)
-    k1 = np.int64((hi[e, 2] - origin[2]) / cell)
+    i0, j0, k0, i1, j1, k1 = _cell_span(lo, hi, e, cell, origin)
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):
