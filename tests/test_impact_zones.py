@@ -8,6 +8,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 
 from spinweb_fe.fe.cable_contact import MARGIN, resolve_crossings
 from spinweb_fe.fe.crossing import pair_crossings
@@ -209,3 +210,95 @@ def test_the_passes_after_the_first_see_every_pair_of_the_moved_nodes():
         want = [p for p, (e, g) in enumerate(pairs)
                 if moved[elems[e]].any() or moved[elems[g]].any()]
         assert list(pairs_of(adj, moved, tick)) == want
+
+
+def _body(rng):
+    """A free hub of 100 kg with an anisotropic inertia, turned and moving, and eight free
+    nodes of 0.5-2 kg about it: (RigidState, x_{n+1}, v before, v after the impulses,
+    inverse masses, V and angular velocity at the step's start)."""
+    from spinweb_fe.fe.rigid import RigidState, jacobi3
+
+    inertia = np.diag([4000.0, 2500.0, 3000.0])
+    inertia[0, 1] = inertia[1, 0] = 300.0
+    moments, axes = jacobi3(inertia)
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    rs = RigidState(rng.normal(size=3), rng.normal(size=3), q, 500.0 * rng.normal(size=3),
+                    np.array([100.0]), np.array([0.1, 0.0, -0.2]), inertia, axes, moments)
+    n = 8
+    pos = 6.0 * rng.normal(size=(n, 3))
+    before = 30.0 * rng.normal(size=(n, 3))
+    after = before + rng.normal(size=(n, 3))  # the impulses
+    pos += DT * (after - before)
+    inv_mass = 1.0 / rng.uniform(0.5, 2.0, n)
+    return rs, pos, before, after, inv_mass, np.concatenate([rs.velocity, rng.normal(size=3)])
+
+
+def _body_momenta(rs, y, vel, inv_mass):
+    """(P, L) of body and free nodes: M V + sum m v, M X x V + Pi + sum m x_n x v (``y``:
+    the nodes' x_n)."""
+    m = (1.0 / inv_mass)[:, None]
+    M = rs.mass[0]
+    return (M * rs.velocity + (m * vel).sum(0),
+            M * np.cross(rs.position, rs.velocity) + rs.momentum + (m * np.cross(y, vel)).sum(0))
+
+
+@pytest.mark.parametrize("stuck", [0, 3])
+def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck):
+    """fe.impulses.body_reaction: the free body takes the impulses' reaction so that body
+    and nodes keep their linear and angular momentum (to 1e-12 of their size); the nodes
+    stuck to it this step (an impact zone moved them with the hub, fe.zones) take the
+    body's change with it, a rigid motion dV + dw x (x - X) (to 1e-12 m/s), their x_{n+1}
+    by dt times it; with none stuck the body takes -J / M as before."""
+    from spinweb_fe.fe.impulses import body_reaction
+    from spinweb_fe.fe.rigid import inv_inertia, rotation
+
+    rs, pos, before, after, inv_mass, start = _body(np.random.default_rng(7 + stuck))
+    follow = np.zeros(len(pos), np.bool_)
+    follow[:stuck] = True
+    y = pos - DT * after  # x_n (the impulses moved x_{n+1} by dt times their change)
+    P0, L0 = _body_momenta(rs, y, before, inv_mass)
+    J = ((after - before) / inv_mass[:, None]).sum(0)
+    V0, X0 = rs.velocity.copy(), rs.position.copy()
+    R0 = rotation(rs.quaternion)  # (the body's change of rate is taken at this attitude)
+    w0 = inv_inertia(rs, R0, rs.momentum)
+    pos_in, after_in = pos.copy(), after.copy()
+    body_reaction(rs, pos, before, after, inv_mass, start, DT, follow)
+    assert np.abs(pos - DT * after - y).max() < 1e-12
+    P1, L1 = _body_momenta(rs, y, after, inv_mass)
+    assert np.abs(P1 - P0).max() < 1e-12 * np.abs(P0).max()
+    assert np.abs(L1 - L0).max() < 1e-12 * np.abs(L0).max()
+    assert np.array_equal(after[stuck:], after_in[stuck:])  # the others keep theirs
+    dV = rs.velocity - V0
+    if stuck == 0:
+        assert np.allclose(dV, -J / rs.mass[0], rtol=0, atol=1e-14)
+        return
+    dw = inv_inertia(rs, R0, rs.momentum) - w0
+    assert np.linalg.norm(dw) > 1e-4  # the body turned
+    for i in range(stuck):
+        dv = after[i] - after_in[i]
+        assert np.abs(dv - (dV + np.cross(dw, pos_in[i] - X0))).max() < 1e-9 * np.abs(dv).max()
+        assert np.abs(pos[i] - pos_in[i] - DT * dv).max() < 1e-15
+
+
+def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum():
+    """fe.impulses.axis_reaction: the rate's change dw keeps the angular momentum about
+    the axis of hub and nodes (J dw + sum m (x_n x dv)_z = -H_z, to 1e-12), the stuck
+    nodes turning with the axis, dv = dw z x x_{n+1}; with none stuck dw = -H_z / J."""
+    from spinweb_fe.fe.impulses import axis_reaction
+
+    rs, pos, before, after, inv_mass, _ = _body(np.random.default_rng(3))
+    m = (1.0 / inv_mass)[:, None]
+    Hz = (m * np.cross(pos - DT * after, after - before)).sum(0)[2]
+    follow = np.zeros(len(pos), np.bool_)
+    assert axis_reaction(pos, before, after.copy(), inv_mass, DT, 4000.0, follow) \
+        == pytest.approx(-Hz / 4000.0, rel=1e-14)
+    follow[:4] = True
+    Lz0 = (m * np.cross(pos - DT * after, after)).sum(0)[2]
+    pos_in, after_in = pos.copy(), after.copy()
+    dw = axis_reaction(pos, before, after, inv_mass, DT, 4000.0, follow)
+    Lz1 = (m * np.cross(pos - DT * after, after)).sum(0)[2] + 4000.0 * dw
+    assert abs(Lz1 - (Lz0 - Hz)) < 1e-12 * abs(Lz0)  # (Lz0 held the impulses' H_z)
+    dv = after - after_in
+    assert np.abs(dv[:4] - dw * np.cross([0.0, 0.0, 1.0], pos_in[:4])).max() < 1e-14
+    assert np.array_equal(dv[4:], np.zeros((4, 3)))

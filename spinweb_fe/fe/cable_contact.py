@@ -48,8 +48,8 @@ from numba import njit
 
 from spinweb_fe.fe.crossing import (boxes_apart, closest_nodes, closest_points,
                                     moved_crosses, pair_crossings, swept_boxes)
-from spinweb_fe.fe.impulses import (body_reaction, friction_impulses, impulse_work,
-                                   node_impulse)
+from spinweb_fe.fe.impulses import (axis_reaction, body_reaction, friction_impulses,
+                                   impulse_work)
 from spinweb_fe.fe.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
                                 pair_adjacency, pairs_of)
 
@@ -181,7 +181,8 @@ class ContactKernel(NamedTuple):
     fail-safe's reaction made at its end (a free hub: 1 if it took one), the axis's angle
     [rad] at the step's start, or a free hub's velocity [m/s], angular velocity [rad/s],
     hub centre [m] and attitude quaternion there (fe.impulses.body_snapshot); force
-    (n, 3) [N] and share (n,) int64: scratch; pos0, active, box: the audit's (x_n, the
+    (n, 3) [N] and share (n,) int64: scratch; follow (n,) bool: the free nodes that move
+    with the hub this step (fe.zones); pos0, active, box: the audit's (x_n, the
     elements its broad phase takes, the swept boxes [m] of the last step); radius [m],
     kappa, margin [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (9,):
     stored energy [J], pairs in contact, deepest penetration [m] now and over the run,
@@ -200,6 +201,7 @@ class ContactKernel(NamedTuple):
     spin: np.ndarray
     force: np.ndarray
     share: np.ndarray
+    follow: np.ndarray
     pos0: np.ndarray
     active: np.ndarray
     box: np.ndarray
@@ -245,7 +247,9 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     step (the fixed axis's turn to ``theta`` [rad], or the body's) moves the free nodes of
     an impact zone that holds a node of the hub (fe.zones). ``again``: a pass after the
     hub, having taken a reaction, placed its nodes again (fe.step.settle): only the pairs
-    of those nodes (inv_mass 0) are tested, without the friction."""
+    of the nodes it placed (inv_mass 0) and of the free nodes stuck to it this step (the
+    zones', ``ck.follow``, which take the reaction with it) are tested, without the
+    friction."""
     ck.vel1[:] = vel
     ck.spin[1] = 0.0
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
@@ -260,26 +264,31 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     if again:
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, None, ZONE_ROUNDS, hub,
-                                       inv_mass == 0.0)
+                                       (inv_mass == 0.0) | ck.follow, ck.follow)
     else:
+        ck.follow[:] = False
         swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub)
+                                       dt, ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub,
+                                       None, ck.follow)
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
         # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
         # m dv / dt in the step's kick would), not the half-step kinetic energy's change,
         # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
-        total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass)
+        work_hub = 0.0
         if rate is not None:
-            dw = -node_impulse(pos, ck.vel1, vel, inv_mass, dt)[1][2] / inertia[0]
+            dw = axis_reaction(pos, ck.vel1, vel, inv_mass, dt, inertia[0], ck.follow)
             # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
-            total -= inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
+            work_hub = inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
             rate[0] += dw
             ck.spin[1] = dw
         if body is not None:
-            total -= body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt)
+            work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt,
+                                     ck.follow)
             ck.spin[1] = 1.0
+        # (after the reaction, which the nodes stuck to the hub take too)
+        total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass) - work_hub
         rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
         ck.stats[FRICTION] += rub
         ck.stats[TAKEN] += total - rub
@@ -308,6 +317,7 @@ class CableContact:
         self.force = np.zeros((model.n_nodes, 3))
         self.vel0, self.vel1, self.vel2 = (np.zeros((model.n_nodes, 3)) for _ in range(3))
         self.share = np.zeros(model.n_nodes, np.int64)
+        self.follow = np.zeros(model.n_nodes, np.bool_)
         self.stats = np.zeros(9)
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
 
@@ -332,7 +342,7 @@ class CableContact:
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
                                          self.vel1, self.vel2, np.zeros(16), self.force,
-                                         self.share, audit.pos0, audit.active, audit.box,
+                                         self.share, self.follow, audit.pos0, audit.active, audit.box,
                                          self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
                                          np.zeros((rows, 2)))
@@ -386,7 +396,7 @@ def cable_radius(case, model) -> float:
 
 @njit(cache=True)
 def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
-                      box=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None):
+                      box=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None, follow=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.crossing's exact test) gets an impulse along the normal of the two
@@ -403,7 +413,8 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
     with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
     a pass found the rest of the list clear (the hub's nodes, placed again after it took a
-    reaction): the first pass tests only their pairs. Returns (kinetic energy the pair
+    reaction): the first pass tests only their pairs. ``follow`` (n,) bool, if given: the
+    free nodes of zones moved with the hub get marked. Returns (kinetic energy the pair
     impulses took [J], pair impulses, crossings left)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
@@ -483,5 +494,5 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if rounds == 1 and first == 0:
             adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
-                               zone_rounds, hub, moved, adj)
+                               zone_rounds, hub, moved, adj, follow)
     return taken, impulses, left

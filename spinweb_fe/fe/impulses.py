@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.rigid import (cross, dot, hub_centre, inv_inertia, mul_t, normalise,
-                                rotation, turn)
+from spinweb_fe.fe.rigid import (cross, dot, hub_centre, inv_inertia, mul, mul_t, normalise,
+                                rotation, spatial_inertia, turn)
 
 
 @njit(cache=True)
@@ -112,27 +112,123 @@ def node_impulse(pos, before, after, inv_mass, dt):
     return J, H
 
 
+@njit(inline="always")
+def _skew(out, r0, r1, r2, m, sign):
+    """out += sign m [r]x (the matrix of r x .)."""
+    out[0, 1] -= sign * m * r2
+    out[0, 2] += sign * m * r1
+    out[1, 0] += sign * m * r2
+    out[1, 2] -= sign * m * r0
+    out[2, 0] -= sign * m * r1
+    out[2, 1] += sign * m * r0
+
+
 @njit(cache=True)
-def body_reaction(rs, pos, before, after, inv_mass, start, dt):
+def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow):
+    """A fixed axis (effective inertia ``inertia`` [kg m^2]) takes the angular impulse
+    about z of the impulses that changed the free nodes' v_{n+1/2} from ``before`` to
+    ``after`` (``pos``: their x_{n+1}, :func:`node_impulse`), together with the free nodes
+    that move with it this step (``follow``, fe.zones: stuck to the hub, they turn with it,
+    v += dw z x x_{n+1}, x_{n+1} by dt times that): the rate's change dw [rad/s] keeps the
+    axial angular momentum of hub and nodes. Returns dw."""
+    H = node_impulse(pos, before, after, inv_mass, dt)[1][2]
+    if not np.any(follow):
+        return -H / inertia
+    jeff = inertia
+    for i in range(pos.shape[0]):
+        if follow[i] and inv_mass[i] > 0.0:
+            y0, y1 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1]
+            jeff += (y0 * pos[i, 0] + y1 * pos[i, 1]) / inv_mass[i]
+    dw = -H / jeff
+    for i in range(pos.shape[0]):
+        if follow[i] and inv_mass[i] > 0.0:
+            d0, d1 = -dw * pos[i, 1], dw * pos[i, 0]
+            after[i, 0] += d0
+            after[i, 1] += d1
+            pos[i, 0] += dt * d0
+            pos[i, 1] += dt * d1
+    return dw
+
+
+@njit(cache=True)
+def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw):
+    """(dV, dw): the free body's velocity and angular velocity change that keep the linear
+    and angular momentum of the body and the free nodes stuck to it (``follow``; each
+    moving by dV + dw x (x_{n+1} - X)) after the impulses (J, H) (:func:`body_reaction`):
+    one 6 x 6 solve (the inelastic impact of the nodes on the body)."""
+    M = rs.mass[0]
+    X = rs.position
+    A = np.zeros((6, 6))
+    rhs = np.empty(6)
+    for d in range(3):
+        A[d, d] = M
+        rhs[d], rhs[3 + d] = -J[d], -H[d]
+        for e in range(3):
+            A[3 + d, 3 + e] = Iw[d, e]
+    top = np.zeros((3, 3))
+    low = np.zeros((3, 3))
+    _skew(low, base[0], base[1], base[2], M, 1.0)
+    for i in range(pos.shape[0]):
+        if not (follow[i] and inv_mass[i] > 0.0):
+            continue
+        m = 1.0 / inv_mass[i]
+        r = pos[i] - X
+        y = pos[i] - dt * after[i]
+        for d in range(3):
+            A[d, d] += m
+        _skew(top, r[0], r[1], r[2], m, -1.0)  # sum m dw x r = -sum m [r]x dw
+        _skew(low, y[0], y[1], y[2], m, 1.0)
+        yr = y[0] * r[0] + y[1] * r[1] + y[2] * r[2]
+        for d in range(3):  # y x (dw x r) = (y . r) dw - r (y . dw)
+            A[3 + d, 3 + d] += m * yr
+            for e in range(3):
+                A[3 + d, 3 + e] -= m * r[d] * y[e]
+    A[0:3, 3:6] = top
+    A[3:6, 0:3] = low
+    sol = np.linalg.solve(A, rhs)
+    return sol[0:3].copy(), sol[3:6].copy()
+
+
+@njit(cache=True)
+def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None):
     """A free hub (fe.rigid.RigidState ``rs``, after its drift) takes the reaction of the
     impulses that changed the free nodes' v_{n+1/2} from ``before`` to ``after`` (``pos``:
-    their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times that (as a node's impulse moves its
-    x_{n+1}), Pi_{n+1/2} such that the step's angular momentum M X x V + Pi + sum m x_n x
-    v_{n+1/2} is unchanged, and its attitude turned by dt times the change of its angular
-    velocity (as a fixed axis turns by dt dw). ``start``: V_{n-1/2} [m/s] and its angular
-    velocity [rad/s] at the step's start. Returns the work of the reaction on the body [J],
-    paired as the leapfrog pairs a force's (with the half-step values before and after)."""
+    their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times
+    that (as a node's impulse moves its x_{n+1}), Pi_{n+1/2} such that the step's angular
+    momentum M X x V + Pi + sum m x_n x v_{n+1/2} is unchanged, and its attitude turned by
+    dt times the change of its angular velocity (as a fixed axis turns by dt dw). The free
+    nodes marked in ``follow`` (stuck to the hub this step, fe.zones) take the body's
+    change with it, v += dV + dw x (x_{n+1} - X) and x_{n+1} by dt times that, and the
+    change keeps the momenta of body and nodes together (:func:`_stuck`). ``start``:
+    V_{n-1/2} [m/s] and its angular velocity [rad/s] at the step's start. Returns the work
+    of the reaction on the body [J], paired as the leapfrog pairs a force's (with the
+    half-step values before and after)."""
     J, H = node_impulse(pos, before, after, inv_mass, dt)
     M = rs.mass[0]
     X, V, Pi = rs.position, rs.velocity, rs.momentum
     # M (X + dt dV) x (V + dV) - M X x V = (X - dt V) x (M dV): the body's drift started there
     base = X - dt * V
-    dPi = cross(base, J) - H
     R = rotation(rs.quaternion)
     w_old = inv_inertia(rs, R, Pi)
+    stuck = follow is not None and np.any(follow)
+    if stuck:
+        Iw = spatial_inertia(rs, R)
+        dV, dw = _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw)
+        dPi = mul(Iw, dw)
+        dP = M * dV
+        for i in range(pos.shape[0]):
+            if follow[i] and inv_mass[i] > 0.0:
+                dv = dV + cross(dw, pos[i] - X)
+                for d in range(3):
+                    after[i, d] += dv[d]
+                    pos[i, d] += dt * dv[d]
+    else:
+        dV = -J / M
+        dP = -J
+        dPi = cross(base, J) - H
     for d in range(3):
-        V[d] -= J[d] / M
-        X[d] -= dt * J[d] / M
+        V[d] += dV[d]
+        X[d] += dt * dV[d]
         Pi[d] += dPi[d]
     w_new = inv_inertia(rs, R, Pi)
     dw = w_new - w_old
@@ -140,7 +236,7 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt):
     if size > 0.0:
         turn(rs.quaternion, mul_t(R, dw) / size, dt * size)
         normalise(rs.quaternion)
-    return (dot(-J, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5
+    return (dot(dP, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5
 
 
 @njit(cache=True)

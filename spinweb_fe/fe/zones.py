@@ -22,6 +22,11 @@ the hub's motion over the step, x_{n+1} = A y + c (``hub``: A, c from the hub's 
 the two ends of the step, :func:`axis_map`, :func:`body_map`), the map that carried the
 hub's own nodes; the momentum they gain or lose is the hub's reaction (fe.impulses). Without
 the map (a call outside a run) such a zone stays as it is, and its crossings are counted.
+Such a zone's free nodes stay stuck to the hub for the rest of the step (``follow``): the
+hub's reaction to the step's impulses moves them with it (fe.impulses.body_reaction,
+axis_reaction: the inelastic impact of the nodes on the hub, momenta kept), so that a node
+carried along touching a hub element is not left behind on its far side when the hub places
+its nodes again.
 """
 
 from __future__ import annotations
@@ -188,12 +193,14 @@ def body_map(rs, start):
 
 
 @njit(cache=True)
-def hub_zone(members, pos1, vel, inv_mass, dt, hub):
+def hub_zone(members, pos1, vel, inv_mass, dt, hub, follow):
     """The free nodes of ``members`` move with the hub over the step: x_{n+1} = A y + c
-    (``hub``, module docstring), v_{n+1/2} = (x_{n+1} - y) / dt."""
+    (``hub``, module docstring), v_{n+1/2} = (x_{n+1} - y) / dt; they are marked in
+    ``follow`` (n,) bool."""
     for i in members:
         if inv_mass[i] == 0.0:
             continue
+        follow[i] = True
         y0, y1, y2 = pos1[i, 0] - dt * vel[i, 0], pos1[i, 1] - dt * vel[i, 1], \
             pos1[i, 2] - dt * vel[i, 2]
         for d in range(3):
@@ -204,13 +211,14 @@ def hub_zone(members, pos1, vel, inv_mass, dt, hub):
 
 @njit(cache=True)
 def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_ROUNDS,
-                 hub=None, moved=None, adj=None):
+                 hub=None, moved=None, adj=None, follow=None):
     """Zones of the pairs still crossing over the step from ``pos0`` to ``pos1`` (module
     docstring), moved rigidly, grown until no listed pair crosses (at most ``rounds``
     passes; ``hub`` (4, 3): the hub's map over the step for the zones with a node of the
     hub, None: those stay; ``moved`` (n,) bool: the nodes whose pairs may cross, those the
     fail-safe's last pass moved, None: all; ``adj``: :func:`pair_adjacency`'s, None: built
-    here). Returns (zones moved in the last pass that moved any, crossings left: those of
+    here; ``follow`` (n,) bool: the free nodes of zones moved with the hub get marked).
+    Returns (zones moved in the last pass that moved any, crossings left: those of
     the last test)."""
     n = pos0.shape[0]
     parent = np.arange(n)
@@ -219,6 +227,8 @@ def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_R
         moved = np.ones(n, np.bool_)
     if adj is None:
         adj = pair_adjacency(pairs, elem_nodes, n)
+    if follow is None:
+        follow = np.zeros(n, np.bool_)
     times = np.empty(3)
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
@@ -260,7 +270,7 @@ def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_R
             if free:
                 rigid_zone(group, pos1, vel, inv_mass, dt)
             elif hub is not None:  # pruned by numba when None
-                hub_zone(group, pos1, vel, inv_mass, dt, hub)
+                hub_zone(group, pos1, vel, inv_mass, dt, hub, follow)
                 done = True
             if done:
                 for i in group:
