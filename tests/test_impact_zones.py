@@ -234,41 +234,46 @@ def _body(rng):
     return rs, pos, before, after, inv_mass, np.concatenate([rs.velocity, rng.normal(size=3)])
 
 
-def _body_momenta(rs, y, vel, inv_mass):
-    """(P, L) of body and free nodes: M V + sum m v, M X x V + Pi + sum m x_n x v (``y``:
-    the nodes' x_n)."""
+def _body_momenta(rs, x, vel, inv_mass):
+    """(P, L) of body and free nodes: M V + sum m v, M X x V + Pi + sum m x x v (``x``:
+    the nodes' x_{n+1}, the leapfrog's x_{n+1} x v_{n+1/2} = x_n x v_{n+1/2})."""
     m = (1.0 / inv_mass)[:, None]
     M = rs.mass[0]
     return (M * rs.velocity + (m * vel).sum(0),
-            M * np.cross(rs.position, rs.velocity) + rs.momentum + (m * np.cross(y, vel)).sum(0))
+            M * np.cross(rs.position, rs.velocity) + rs.momentum + (m * np.cross(x, vel)).sum(0))
 
 
-@pytest.mark.parametrize("stuck", [0, 3])
-def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck):
+@pytest.mark.parametrize("stuck, place", [(0, True), (3, True), (0, False), (3, False)])
+def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck, place):
     """fe.impulses.body_reaction: the free body takes the impulses' reaction so that body
     and nodes keep their linear and angular momentum (to 1e-12 of their size); the nodes
     stuck to it this step (an impact zone moved them with the hub, fe.zones) take the
-    body's change with it, a rigid motion dV + dw x (x - X) (to 1e-12 m/s), their x_{n+1}
-    by dt times it; with none stuck the body takes -J / M as before."""
+    body's change with it, a rigid motion dV + dw x (x - X) (to 1e-9 of it), their x_{n+1}
+    by dt times it; with none stuck the body takes -J / M as before. Without placing (the
+    step's last pass, fe.step.settle) the velocities change and no position: the body's
+    centre and attitude and the stuck nodes' x_{n+1} stay (bit for bit)."""
     from spinweb_fe.fe.impulses import body_reaction
     from spinweb_fe.fe.rigid import inv_inertia, rotation
 
     rs, pos, before, after, inv_mass, start = _body(np.random.default_rng(7 + stuck))
     follow = np.zeros(len(pos), np.bool_)
     follow[:stuck] = True
-    y = pos - DT * after  # x_n (the impulses moved x_{n+1} by dt times their change)
-    P0, L0 = _body_momenta(rs, y, before, inv_mass)
+    pos0 = pos - DT * (after - before)  # x_{n+1} before the impulses moved it
+    P0, L0 = _body_momenta(rs, pos0, before, inv_mass)
     J = ((after - before) / inv_mass[:, None]).sum(0)
-    V0, X0 = rs.velocity.copy(), rs.position.copy()
+    V0, X0, q0 = rs.velocity.copy(), rs.position.copy(), rs.quaternion.copy()
     R0 = rotation(rs.quaternion)  # (the body's change of rate is taken at this attitude)
     w0 = inv_inertia(rs, R0, rs.momentum)
     pos_in, after_in = pos.copy(), after.copy()
-    body_reaction(rs, pos, before, after, inv_mass, start, DT, follow)
-    assert np.abs(pos - DT * after - y).max() < 1e-12
-    P1, L1 = _body_momenta(rs, y, after, inv_mass)
+    body_reaction(rs, pos, before, after, inv_mass, start, DT, follow, place)
+    P1, L1 = _body_momenta(rs, pos, after, inv_mass)
     assert np.abs(P1 - P0).max() < 1e-12 * np.abs(P0).max()
     assert np.abs(L1 - L0).max() < 1e-12 * np.abs(L0).max()
     assert np.array_equal(after[stuck:], after_in[stuck:])  # the others keep theirs
+    assert np.array_equal(pos[stuck:], pos_in[stuck:])
+    if not place:
+        assert np.array_equal(pos, pos_in) and np.array_equal(rs.position, X0)
+        assert np.array_equal(rs.quaternion, q0)
     dV = rs.velocity - V0
     if stuck == 0:
         assert np.allclose(dV, -J / rs.mass[0], rtol=0, atol=1e-14)
@@ -278,13 +283,15 @@ def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck)
     for i in range(stuck):
         dv = after[i] - after_in[i]
         assert np.abs(dv - (dV + np.cross(dw, pos_in[i] - X0))).max() < 1e-9 * np.abs(dv).max()
-        assert np.abs(pos[i] - pos_in[i] - DT * dv).max() < 1e-15
+        assert np.abs(pos[i] - pos_in[i] - (DT * dv if place else 0.0)).max() < 1e-15
 
 
-def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum():
+@pytest.mark.parametrize("place", [True, False])
+def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum(place):
     """fe.impulses.axis_reaction: the rate's change dw keeps the angular momentum about
-    the axis of hub and nodes (J dw + sum m (x_n x dv)_z = -H_z, to 1e-12), the stuck
-    nodes turning with the axis, dv = dw z x x_{n+1}; with none stuck dw = -H_z / J."""
+    the axis of hub and nodes (J dw + sum m (x_{n+1} x v)_z, to 1e-12), the stuck nodes
+    turning with the axis, dv = dw z x x_{n+1}, their x_{n+1} by dt dv (without placing,
+    the step's last pass: not at all); with none stuck dw = -H_z / J."""
     from spinweb_fe.fe.impulses import axis_reaction
 
     rs, pos, before, after, inv_mass, _ = _body(np.random.default_rng(3))
@@ -294,11 +301,13 @@ def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum():
     assert axis_reaction(pos, before, after.copy(), inv_mass, DT, 4000.0, follow) \
         == pytest.approx(-Hz / 4000.0, rel=1e-14)
     follow[:4] = True
-    Lz0 = (m * np.cross(pos - DT * after, after)).sum(0)[2]
+    pos0 = pos - DT * (after - before)  # x_{n+1} before the impulses moved it
+    Lz0 = (m * np.cross(pos0, before)).sum(0)[2]
     pos_in, after_in = pos.copy(), after.copy()
-    dw = axis_reaction(pos, before, after, inv_mass, DT, 4000.0, follow)
-    Lz1 = (m * np.cross(pos - DT * after, after)).sum(0)[2] + 4000.0 * dw
-    assert abs(Lz1 - (Lz0 - Hz)) < 1e-12 * abs(Lz0)  # (Lz0 held the impulses' H_z)
+    dw = axis_reaction(pos, before, after, inv_mass, DT, 4000.0, follow, place)
+    Lz1 = (m * np.cross(pos, after)).sum(0)[2] + 4000.0 * dw
+    assert abs(Lz1 - Lz0) < 1e-12 * abs(Lz0)
     dv = after - after_in
     assert np.abs(dv[:4] - dw * np.cross([0.0, 0.0, 1.0], pos_in[:4])).max() < 1e-14
     assert np.array_equal(dv[4:], np.zeros((4, 3)))
+    assert np.abs(pos - pos_in - (DT * dv if place else 0.0)).max() < 1e-15

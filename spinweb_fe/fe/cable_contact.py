@@ -234,7 +234,7 @@ def contact_push(ck, pos, vel, inv_mass, dt):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
-                    theta=0.0, again=False):
+                    theta=0.0, again=False, place=True):
     """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
     Returns its impulses (0: the positions and the boxes stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
@@ -249,7 +249,8 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     hub, having taken a reaction, placed its nodes again (fe.step.settle): only the pairs
     of the nodes it placed (inv_mass 0) and of the free nodes stuck to it this step (the
     zones', ``ck.follow``, which take the reaction with it) are tested, without the
-    friction."""
+    friction. ``place`` False: the hub's reaction changes its velocities only, not its
+    pose (fe.step.settle's last pass; fe.impulses)."""
     ck.vel1[:] = vel
     ck.spin[1] = 0.0
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
@@ -278,14 +279,14 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
         work_hub = 0.0
         if rate is not None:
-            dw = axis_reaction(pos, ck.vel1, vel, inv_mass, dt, inertia[0], ck.follow)
+            dw = axis_reaction(pos, ck.vel1, vel, inv_mass, dt, inertia[0], ck.follow, place)
             # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
             work_hub = inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
             rate[0] += dw
             ck.spin[1] = dw
         if body is not None:
             work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt,
-                                     ck.follow)
+                                     ck.follow, place)
             ck.spin[1] = 1.0
         # (after the reaction, which the nodes stuck to the hub take too)
         total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass) - work_hub

@@ -124,20 +124,24 @@ def _skew(out, r0, r1, r2, m, sign):
 
 
 @njit(cache=True)
-def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow):
+def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow, place=True):
     """A fixed axis (effective inertia ``inertia`` [kg m^2]) takes the angular impulse
     about z of the impulses that changed the free nodes' v_{n+1/2} from ``before`` to
     ``after`` (``pos``: their x_{n+1}, :func:`node_impulse`), together with the free nodes
     that move with it this step (``follow``, fe.zones: stuck to the hub, they turn with it,
     v += dw z x x_{n+1}, x_{n+1} by dt times that): the rate's change dw [rad/s] keeps the
-    axial angular momentum of hub and nodes. Returns dw."""
+    axial angular momentum of hub and nodes. ``place`` False: the hub will not turn by dt
+    dw in this step (fe.step.settle's last pass), so the stuck nodes take only the velocity
+    (their x_{n+1} stays, and so their moment arm). Returns dw."""
     H = node_impulse(pos, before, after, inv_mass, dt)[1][2]
     if not np.any(follow):
         return -H / inertia
     jeff = inertia
     for i in range(pos.shape[0]):
         if follow[i] and inv_mass[i] > 0.0:
-            y0, y1 = pos[i, 0] - dt * after[i, 0], pos[i, 1] - dt * after[i, 1]
+            y0, y1 = pos[i, 0], pos[i, 1]
+            if place:
+                y0, y1 = y0 - dt * after[i, 0], y1 - dt * after[i, 1]
             jeff += (y0 * pos[i, 0] + y1 * pos[i, 1]) / inv_mass[i]
     dw = -H / jeff
     for i in range(pos.shape[0]):
@@ -145,17 +149,19 @@ def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow):
             d0, d1 = -dw * pos[i, 1], dw * pos[i, 0]
             after[i, 0] += d0
             after[i, 1] += d1
-            pos[i, 0] += dt * d0
-            pos[i, 1] += dt * d1
+            if place:
+                pos[i, 0] += dt * d0
+                pos[i, 1] += dt * d1
     return dw
 
 
 @njit(cache=True)
-def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw):
+def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw, place):
     """(dV, dw): the free body's velocity and angular velocity change that keep the linear
     and angular momentum of the body and the free nodes stuck to it (``follow``; each
     moving by dV + dw x (x_{n+1} - X)) after the impulses (J, H) (:func:`body_reaction`):
-    one 6 x 6 solve (the inelastic impact of the nodes on the body)."""
+    one 6 x 6 solve (the inelastic impact of the nodes on the body; ``place`` False: the
+    nodes' x_{n+1} stay, their moment arm with them)."""
     M = rs.mass[0]
     X = rs.position
     A = np.zeros((6, 6))
@@ -173,7 +179,7 @@ def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw):
             continue
         m = 1.0 / inv_mass[i]
         r = pos[i] - X
-        y = pos[i] - dt * after[i]
+        y = pos[i] - dt * after[i] if place else pos[i].copy()
         for d in range(3):
             A[d, d] += m
         _skew(top, r[0], r[1], r[2], m, -1.0)  # sum m dw x r = -sum m [r]x dw
@@ -190,7 +196,7 @@ def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw):
 
 
 @njit(cache=True)
-def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None):
+def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None, place=True):
     """A free hub (fe.rigid.RigidState ``rs``, after its drift) takes the reaction of the
     impulses that changed the free nodes' v_{n+1/2} from ``before`` to ``after`` (``pos``:
     their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times
@@ -199,7 +205,11 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None):
     dt times the change of its angular velocity (as a fixed axis turns by dt dw). The free
     nodes marked in ``follow`` (stuck to the hub this step, fe.zones) take the body's
     change with it, v += dV + dw x (x_{n+1} - X) and x_{n+1} by dt times that, and the
-    change keeps the momenta of body and nodes together (:func:`_stuck`). ``start``:
+    change keeps the momenta of body and nodes together (:func:`_stuck`). ``place`` False
+    (fe.step.settle's last pass): the reaction changes the velocities only, X_{n+1}, the
+    attitude and the stuck nodes' x_{n+1} stay (so M X x V + Pi + sum m x_{n+1} x v is kept,
+    the moment arms those of x_{n+1}), and nothing the hub carries moves after the pass
+    that tested it. ``start``:
     V_{n-1/2} [m/s] and its angular velocity [rad/s] at the step's start. Returns the work
     of the reaction on the body [J], paired as the leapfrog pairs a force's (with the
     half-step values before and after)."""
@@ -207,13 +217,13 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None):
     M = rs.mass[0]
     X, V, Pi = rs.position, rs.velocity, rs.momentum
     # M (X + dt dV) x (V + dV) - M X x V = (X - dt V) x (M dV): the body's drift started there
-    base = X - dt * V
+    base = X - dt * V if place else X.copy()
     R = rotation(rs.quaternion)
     w_old = inv_inertia(rs, R, Pi)
     stuck = follow is not None and np.any(follow)
     if stuck:
         Iw = spatial_inertia(rs, R)
-        dV, dw = _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw)
+        dV, dw = _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw, place)
         dPi = mul(Iw, dw)
         dP = M * dV
         for i in range(pos.shape[0]):
@@ -221,19 +231,21 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None):
                 dv = dV + cross(dw, pos[i] - X)
                 for d in range(3):
                     after[i, d] += dv[d]
-                    pos[i, d] += dt * dv[d]
+                    if place:
+                        pos[i, d] += dt * dv[d]
     else:
         dV = -J / M
         dP = -J
         dPi = cross(base, J) - H
     for d in range(3):
         V[d] += dV[d]
-        X[d] += dt * dV[d]
+        if place:
+            X[d] += dt * dV[d]
         Pi[d] += dPi[d]
     w_new = inv_inertia(rs, R, Pi)
     dw = w_new - w_old
     size = np.sqrt(dot(dw, dw))
-    if size > 0.0:
+    if place and size > 0.0:
         turn(rs.quaternion, mul_t(R, dw) / size, dt * size)
         normalise(rs.quaternion)
     return (dot(dP, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5

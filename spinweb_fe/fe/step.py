@@ -255,22 +255,24 @@ def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
     """The contact's fail-safe at the step's end (fe.cable_contact.contact_resolve). When its
     impulses pushed on the hub, the hub takes the reaction and places its tied and held
     nodes again (:func:`reacted`), and the pairs those nodes have are tested again, at most
-    fe.touch.REACTIONS passes in all (a crossing the last placing makes is the audit's).
-    Returns (fresh, clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
+    fe.touch.REACTIONS passes in all; in the last the reaction changes the hub's velocities
+    only, not its pose, so that nothing moves after the pass that tested it (the passes can
+    go on pushing a cable pinched between two of the hub's elements). Returns (fresh, clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
     fresh, clean = True, True
     for k in range(REACTIONS):
+        place = k < REACTIONS - 1
         if axis is not None:
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, hs.rate, hs.inertia,
-                                      None, hs.angle[0], k > 0)
+                                      None, hs.angle[0], k > 0, place)
         else:
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
-                                      hs.angle[0], k > 0)
+                                      hs.angle[0], k > 0, place)
         fresh = fresh and n == 0 and contact.spin[1] == 0.0
         clean = fresh and left == 0
         if contact.spin[1] == 0.0:
             break
-        hs.angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, contact.spin[1],
-                              dt)
+        turned = contact.spin[1] if place else 0.0  # (a free body turned itself, or not)
+        hs.angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, turned, dt)
     return fresh, clean
 
 
