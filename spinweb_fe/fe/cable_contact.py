@@ -343,7 +343,8 @@ class CableContact:
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
                                          self.vel1, self.vel2, np.zeros(16), self.force,
-                                         self.share, self.follow, audit.pos0, audit.active, audit.box,
+                                         self.share, self.follow, audit.pos0, audit.active,
+                                         audit.box,
                                          self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
                                          np.zeros((rows, 2)))

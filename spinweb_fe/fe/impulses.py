@@ -209,10 +209,9 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None, plac
     (fe.step.settle's last pass): the reaction changes the velocities only, X_{n+1}, the
     attitude and the stuck nodes' x_{n+1} stay (so M X x V + Pi + sum m x_{n+1} x v is kept,
     the moment arms those of x_{n+1}), and nothing the hub carries moves after the pass
-    that tested it. ``start``:
-    V_{n-1/2} [m/s] and its angular velocity [rad/s] at the step's start. Returns the work
-    of the reaction on the body [J], paired as the leapfrog pairs a force's (with the
-    half-step values before and after)."""
+    that tested it. ``start``: V_{n-1/2} [m/s] and its angular velocity [rad/s] at the
+    step's start. Returns the work of the reaction on the body [J], paired as the leapfrog
+    pairs a force's (with the half-step values before and after)."""
     J, H = node_impulse(pos, before, after, inv_mass, dt)
     M = rs.mass[0]
     X, V, Pi = rs.position, rs.velocity, rs.momentum

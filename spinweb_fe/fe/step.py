@@ -257,7 +257,8 @@ def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
     nodes again (:func:`reacted`), and the pairs those nodes have are tested again, at most
     fe.touch.REACTIONS passes in all; in the last the reaction changes the hub's velocities
     only, not its pose, so that nothing moves after the pass that tested it (the passes can
-    go on pushing a cable pinched between two of the hub's elements). Returns (fresh, clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
+    go on pushing a cable pinched between two of the hub's elements). Returns (fresh,
+    clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
     fresh, clean = True, True
     for k in range(REACTIONS):
         place = k < REACTIONS - 1
