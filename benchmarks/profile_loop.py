@@ -90,7 +90,7 @@ def main(argv=None) -> int:
     for nt in (1, 2):
         numba.set_num_threads(nt)
         th = None if nt == 1 else nt
-        work = make_work(model.n_nodes, m, nt)
+        work = make_work(model.n_nodes, m, nt, elem_nodes=model.elements.nodes)
         st = state0.copy()
         pos, vel = st.node_pos, st.node_vel
         sums = np.zeros(5)

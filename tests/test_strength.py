@@ -305,7 +305,7 @@ def scatter_forces(elems, pos, vel):
 def forces_of(elems, strength, ss, pos, vel, threads=None, block=16):
     """The step's element pass (strength pass when ``strength`` checks) summed per node:
     (n, 3), blocks of ``block`` elements."""
-    work = make_work(len(pos), len(elems.nodes), threads or 1, block)
+    work = make_work(len(pos), len(elems.nodes), threads or 1, block, elem_nodes=elems.nodes)
     step.element_pass(elems, make_links(elems.nodes, len(pos)), strength, ss, pos, vel, work,
                       True, 1e-5, threads)
     return work.force

@@ -39,6 +39,30 @@ def test_two_threads_agree_with_one_and_repeat_bit_for_bit(friction):
     assert np.max(np.abs(K - K[0])) / abs(K[0]) < 1e-12
 
 
+def test_threads_take_the_element_blocks_of_their_own_nodes():
+    """fe.forces.thread_order on a flat web (its x-lines listed before its y-lines): a
+    permutation of the blocks, sorted by their mean node; with two threads each takes
+    elements whose ends lie in its own half of the nodes (the node passes' ranges), where a
+    split of the element order would give each thread ends across all nodes."""
+    from spinweb_fe.fe.forces import thread_order
+
+    mesh = flat_quadquad(20.0, 0.25, 1, 1.0, 0.0)
+    en, n, block = mesh.elem_nodes, mesh.n_nodes, 64
+    order = thread_order(en, block)
+    blocks = -(-len(en) // block)
+    assert sorted(order.tolist()) == list(range(blocks))
+    key = [en[b * block:(b + 1) * block].mean() for b in order]
+    assert np.all(np.diff(key) >= 0)
+
+    def own(block_list):  # share of thread 0's element ends below n / 2
+        ends = np.concatenate([en[b * block:(b + 1) * block] for b in block_list])
+        return np.mean(ends < n // 2)
+
+    assert own(order[:blocks // 2]) > 0.95
+    assert own(range(blocks // 2)) < 0.6
+    assert thread_order(np.zeros((0, 2), np.int64), block).tolist() == [0]
+
+
 def test_threaded_flat_web_conserves_angular_momentum():
     mesh = flat_quadquad(20.0, 1.0, 1, 1.0, 0.0)
     h = run(mesh, 2, t_end=0.02, hub_radius=0.0, hub_inertia=1.0, contact=False)

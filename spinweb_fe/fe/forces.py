@@ -86,6 +86,10 @@ class Work(NamedTuple):
     nout : (node blocks, 5) float64
         Per node block: kinetic energy and angular momentum sums before and after the update,
         contact dissipation [J].
+    order : (element blocks,) int64
+        The element blocks in the order the threads take them, thread c the c-th of
+        ``chunks`` equal runs: sorted by their elements' mean node index, so that a thread's
+        elements join the nodes of its own node range (:func:`thread_order`).
     """
 
     force: np.ndarray
@@ -96,6 +100,7 @@ class Work(NamedTuple):
     buf: np.ndarray
     eout: np.ndarray
     nout: np.ndarray
+    order: np.ndarray
 
 
 def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
@@ -123,15 +128,43 @@ def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
 
 
 def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK,
-              tidal: bool = False) -> Work:
+              tidal: bool = False, elem_nodes: np.ndarray | None = None) -> Work:
     """A :class:`Work` for a model, with gather buffers for ``chunks`` threads and blocks of
-    ``block`` elements (and nodes), and (``tidal``) the gravity gradient's node forces."""
+    ``block`` elements (and nodes), and (``tidal``) the gravity gradient's node forces. With
+    ``elem_nodes`` (m, 2) the threads take the element blocks in :func:`thread_order`, else
+    in element order (one thread: the order is not used)."""
+    blocks = max(1, -(-n_elems // block))
+    order = (thread_order(elem_nodes, block) if elem_nodes is not None
+             else np.arange(blocks, dtype=np.int64))
     return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros(n_nodes, np.bool_),
                 np.zeros((n_nodes if tidal else 0, 3)),
                 np.zeros((3, n_elems + 1)),
                 np.zeros((chunks, 8, block)),
-                np.zeros((max(1, -(-n_elems // block)), 8)),
-                np.zeros((max(1, -(-n_nodes // block)), 5)))
+                np.zeros((blocks, 8)),
+                np.zeros((max(1, -(-n_nodes // block)), 5)),
+                order)
+
+
+def thread_order(elem_nodes: np.ndarray, block: int = BLOCK) -> np.ndarray:
+    """The element blocks of ``block`` elements sorted (stably) by the mean node index of
+    their elements' ends.
+
+    The node passes give each thread one contiguous range of nodes, and they write the
+    positions the next element pass reads. A thread that took a contiguous run of blocks in
+    element order would read nodes that the other thread has just written wherever the
+    element order does not follow the node order (a web lists all its x-lines, then all its
+    y-lines: each half of the elements spans every node), and the cache lines of the
+    positions then travel between the cores every step (measured: two threads 1.16x one on
+    the 80 400-element web, 1.96x with the elements sorted). Sorted blocks keep a thread's
+    elements on its own nodes. Which thread computes a block does not change a bit: each
+    block writes its own elements and its own sums."""
+    m = len(elem_nodes)
+    if m == 0:
+        return np.zeros(1, np.int64)
+    starts = np.arange(0, m, block)
+    ends = np.asarray(elem_nodes, np.float64).sum(axis=1)
+    key = np.add.reduceat(ends, starts) / np.diff(np.append(starts, m))
+    return np.argsort(key, kind="stable").astype(np.int64)
 
 
 @njit(inline="always", error_model="numpy")
@@ -222,14 +255,17 @@ def element_block(inv_rest, ea, cdamp, damped, first, second, pos, vel, ef, tens
 
 @njit(cache=True, parallel=True)
 def element_threads(elems, links, pos, vel, work, record):
-    """:func:`element_block` of every block, the blocks in one contiguous chunk per thread."""
+    """:func:`element_block` of every block, thread c taking the c-th of ``nc`` equal runs of
+    the blocks in ``work.order``."""
     nc = work.buf.shape[0]
     nb = work.eout.shape[0]
     inv_rest, ea, cdamp, damped = elems.inv_rest, elems.ea, elems.cdamp, elems.damped
     first, second, ef, tension, eout = links.first, links.second, work.ef, work.tension, work.eout
+    order = work.order
     for c in prange(nc):
         buf = work.buf[c]
-        for b in range(nb * c // nc, nb * (c + 1) // nc):
+        for q in range(nb * c // nc, nb * (c + 1) // nc):
+            b = order[q]
             element_block(inv_rest, ea, cdamp, damped, first, second, pos, vel, ef, tension, eout,
                           buf, b, record)
 

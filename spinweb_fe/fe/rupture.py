@@ -172,12 +172,14 @@ def strength_block(elems, strength, broken, pos, vel, ef, b, size, record, out, 
 
 @njit(cache=True, parallel=True)
 def strength_threads(elems, strength, broken, pos, vel, work, record, dt):
-    """:func:`strength_block` of every block, the blocks in one contiguous chunk per thread
-    (each element written by its own block only)."""
+    """:func:`strength_block` of every block, thread c taking the c-th of ``nc`` equal runs
+    of the blocks in ``work.order`` (each element written by its own block only)."""
     nc = work.buf.shape[0]
     nb = work.eout.shape[0]
+    order = work.order
     for c in prange(nc):
-        for b in range(nb * c // nc, nb * (c + 1) // nc):
+        for q in range(nb * c // nc, nb * (c + 1) // nc):
+            b = order[q]
             strength_block(elems, strength, broken, pos, vel, work.ef, b, work.buf.shape[2],
                            record, work.eout[b], dt)
 

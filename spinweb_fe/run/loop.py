@@ -132,7 +132,8 @@ class _Chunks:
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, *model.hub_kind, control.kernel)
         self.work = make_work(model.n_nodes, model.n_elems, threads,
-                              tidal=model.env.n > 0.0 and not model.free_hub)
+                              tidal=model.env.n > 0.0 and not model.free_hub,
+                              elem_nodes=model.elements.nodes)
         # None on one thread, so that numba compiles no thread kernel
         self.threads = None if threads == 1 else threads
         rows = ROWS_PER_CHUNK + 1
