@@ -141,6 +141,11 @@ MUTANTS = (
            "            b = order[q]\n", "            b = order[q // 2]\n",
            "threads: element blocks in work.order taken twice, half of them never",
            ("tests/test_threads.py", "tests/test_strength.py")),
+    Mutant("helper_phase_types_drift", "spinweb_fe/run/warmup.py",
+           "state.strength.broken, types.Omitted(None))),",
+           "state.strength.broken, None)),",
+           "compile helper: a phase listed with other types than the loop passes (its work "
+           "lost, the phase compiled twice)", ("tests/test_warmup.py",)),
     Mutant("kinetic_energy_new_half_step", "spinweb_fe/fe/axis.py",
            "ke = 0.5 * (sums[0] + sums[1]) + 0.25 * j_eff * (w_old * w_old + w_new * w_new)",
            "ke = sums[1] + 0.5 * j_eff * w_new * w_new",

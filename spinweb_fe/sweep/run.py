@@ -31,6 +31,7 @@ import difflib
 import itertools
 import logging
 import math
+import os
 import re
 import time
 import tomllib
@@ -326,6 +327,7 @@ def run_one(task: dict) -> dict:
     the run's log go to ``out_dir/run.log``.
     """
     t0 = time.perf_counter()
+    os.environ["SPINWEB_COMPILE_HELPER"] = "0"  # the workers share the cores already
     out = Path(task["out_dir"])
     out.mkdir(parents=True, exist_ok=True)
     spin_log = logging.getLogger("spinweb_fe")  # the package: every module logs under it

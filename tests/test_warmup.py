@@ -1,0 +1,127 @@
+"""The cold start's compile helper (spinweb_fe.run.warmup): its phases are the loop's, and a
+cold run with it gives the same result and leaves no process behind."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from spinweb_fe.run import warmup
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO = ROOT / "cases" / "demo.toml"
+
+#: in a fresh process with an empty numba cache: compile the helper's phases of the demo's
+#: scene (one thread) and of the same scene on two threads, then the step loop itself;
+#: print which functions the loop's compile compiled
+MATCH = textwrap.dedent("""
+    import sys
+    from numba.core import event as ev
+    from spinweb_fe.case import load
+    from spinweb_fe.case.scene import prepare
+    from spinweb_fe.fe.step import advance
+    from spinweb_fe.record.arms import ArmTracker
+    from spinweb_fe.run import warmup
+    from spinweb_fe.run.loop import _Chunks, choose_threads, records_vectors
+    mesh, model, control, state, dt = prepare(load(sys.argv[1]))
+    threads = choose_threads(model, int(sys.argv[2]))
+    chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), 50, threads,
+                     dt, records_vectors(model, state))
+    args = chunks.loop_args(state, dt, 0)
+    assert not warmup.cached(advance, args)
+    jobs = warmup.phase_jobs(args[0], (args[1], args[2]), state, chunks.work, chunks.rec,
+                             chunks.threads)
+    for fn, sig in jobs:
+        fn.compile(sig)
+    with ev.install_recorder("numba:compile") as rec:
+        chunks.advance(state.copy(), dt, 0)
+    print("JOBS", *sorted(fn.py_func.__name__ for fn, _ in jobs))
+    print("LOOP", *sorted({e.data["dispatcher"].py_func.__name__ for _, e in rec.buffer}))
+""")
+
+
+def fresh_env(tmp_path, **extra):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), **extra)
+    env.pop("SPINWEB_THREADS", None)
+    return env
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
+    """With the helper's phases compiled first (their types as phase_jobs builds them), the
+    step loop's cold compile compiles none of them again: it loads each from the cache. A
+    phase of the list whose types drifted from the loop's would be compiled twice (the
+    helper's work lost) and is named here. One and two threads (the node pass takes the
+    thread count)."""
+    out = subprocess.run([sys.executable, "-c", MATCH, str(DEMO), str(threads)], cwd=ROOT,
+                         env=fresh_env(tmp_path), capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines()
+                 if line.startswith(("JOBS", "LOOP")))
+    jobs, loop = set(lines["JOBS"].split()), set(lines["LOOP"].split())
+    assert {"axis_nodes", "release_fronts", "record_arms"} <= jobs
+    assert "advance" in loop  # the recorder saw the loop's own compile
+    assert not jobs & loop, f"compiled again by the loop: {sorted(jobs & loop)}"
+
+
+def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp_path):
+    """A cold `spinweb run` of the demo (0.1 s) with the helper, then the same run with it
+    off (warm cache): exit 0, bit-identical histories; after the first run's exit no
+    process of its session is left (the helper stopped with the loop compiled)."""
+    runs = {}
+    for name, on in (("helper", "1"), ("plain", "0")):
+        out = tmp_path / name
+        proc = subprocess.Popen([sys.executable, "-m", "spinweb_fe", "run", str(DEMO), "-o",
+                                 str(out), "--no-progress", "--set", "time.end=0.1"],
+                                cwd=ROOT, env=fresh_env(tmp_path, SPINWEB_COMPILE_HELPER=on),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                start_new_session=True)
+        _, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err.decode()[-2000:]
+        for _ in range(50):  # the helper may take a moment to unwind
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            os.killpg(proc.pid, signal.SIGKILL)
+            pytest.fail("a process of the run's session outlived it")
+        with h5py.File(out / "results.h5") as f:
+            runs[name] = {k: f["history"][k][()] for k in f["history"]}
+    assert runs["helper"].keys() == runs["plain"].keys()
+    for key, value in runs["plain"].items():
+        assert np.array_equal(runs["helper"][key], value, equal_nan=True), key
+
+
+def test_the_helper_is_off_when_asked_or_when_the_loop_is_compiled(tmp_path, monkeypatch):
+    """SPINWEB_COMPILE_HELPER=0 turns it off. A compile in memory or in numba's cache counts
+    as cached (no helper for a warm process or a warm cache), other types do not; a function
+    without a cache cannot be told, and starts no helper."""
+    import numba
+    from numba import njit
+
+    monkeypatch.setenv(warmup.ENV, "0")
+    assert not warmup.wanted()
+    monkeypatch.setenv(warmup.ENV, "1")
+    assert warmup.wanted() == (len(os.sched_getaffinity(0)) >= 2)
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+
+    def twice(x):
+        return 2 * x
+
+    first = njit(cache=True)(twice)
+    assert not warmup.cached(first, (1.0,))
+    first(1.0)
+    assert warmup.cached(first, (1.0,))  # in memory
+    assert warmup.cached(njit(cache=True)(twice), (1.0,))  # in the cache on disk
+    assert not warmup.cached(first, (np.zeros(2),))
+    assert warmup.cached(njit(twice), (np.zeros(2),))  # no cache: cannot tell
