@@ -13,8 +13,8 @@ would have compiled, so nothing it does changes a result. Its output goes nowher
 ignores SIGINT (the run handles that), it is stopped as soon as the loop is compiled and
 dies with this process. A phase whose types the list below no longer matches is compiled
 twice, which costs time but nothing else (tests/test_warmup.py checks that the list matches
-the loop). Phases of a fixed axis only (a free hub's are not listed: its run compiles as
-before). SPINWEB_COMPILE_HELPER=0 turns the helper off.
+the loop). Linux only (elsewhere a run compiles as before), and the phases of a fixed axis
+only (a free hub's are not listed). SPINWEB_COMPILE_HELPER=0 turns the helper off.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import contextlib
 import ctypes
 import os
 import signal
+import sys
 import threading
 
 import numpy as np
@@ -81,14 +82,12 @@ def cached(dispatcher, args) -> bool:
 
 
 def wanted() -> bool:
-    """The helper is on (SPINWEB_COMPILE_HELPER is not 0) and can help: fork exists and
-    this process may run on two or more cores."""
-    if os.environ.get(ENV, "1").strip() == "0" or not hasattr(os, "fork"):
+    """The helper is on (SPINWEB_COMPILE_HELPER is not 0) and can help: Linux (a forked
+    child there needs nothing of the parent's threads, and dies with it) and this process
+    may run on two or more cores (its CPU affinity)."""
+    if os.environ.get(ENV, "1").strip() == "0" or not sys.platform.startswith("linux"):
         return False
-    try:
-        return len(os.sched_getaffinity(0)) >= 2
-    except AttributeError:  # no affinity call on this system
-        return (os.cpu_count() or 1) >= 2
+    return len(os.sched_getaffinity(0)) >= 2
 
 
 def _helper(jobs) -> None:
