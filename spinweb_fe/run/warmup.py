@@ -45,8 +45,7 @@ def phase_jobs(kernel, hub_kind, state, work, rec, threads) -> list:
     from numba import typeof
     from numba.core import types
 
-    axis, body = hub_kind
-    if axis is None:
+    if hub_kind[0] is None:  # a free hub
         return []
     coil, cs, pos, mass = kernel.coil, state.coil, state.node_pos, state.node_mass
     elems, nodes = kernel.elements, kernel.nodes
@@ -90,15 +89,15 @@ def wanted() -> bool:
     return len(os.sched_getaffinity(0)) >= 2
 
 
-def _helper(jobs) -> None:
+def _helper(jobs, parent) -> None:
     """The forked process: compile ``jobs`` into numba's cache, then leave without running
-    anything of the parent's (no atexit, no buffered output)."""
+    anything of the parent's (no atexit, no buffered output). ``parent``: the run's pid."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, _stop)
         with contextlib.suppress(Exception):  # die with the parent (Linux)
             ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-        if os.getppid() == 1:  # the parent is already gone
+        if os.getppid() != parent:  # the run ended before the signal was set
             return
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, 1)
@@ -126,9 +125,10 @@ def compile_helper(chunks, state, dt, audit=None, contact=None):
         jobs = phase_jobs(args[0], (args[1], args[2]), state, chunks.work, chunks.rec,
                           chunks.threads)
         if jobs:
+            parent = os.getpid()
             pid = os.fork()
             if pid == 0:
-                _helper(jobs)
+                _helper(jobs, parent)
     try:
         yield pid
     finally:
