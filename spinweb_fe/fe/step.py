@@ -114,23 +114,24 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
     return se, tmax, pdamp
 
 
-@njit(inline="always")
+@njit(cache=True)
 def field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field, holding):
     """The gravity gradient's loads at x_n on a scene with a fixed axis (fe.axis.axis_field;
     a free hub takes the field in its own phases). The step calls it only for a scene with
-    the field."""
-    if axis is not None:
+    the field; ``tidal`` (fe.forces.Work) None: numba compiles none of it (a call, not
+    inlined, so that numba can prune the branch by the argument's type)."""
+    if axis is not None and tidal is not None:
         axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
                    holding)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def field_work(axis, env, field, tidal, mv, kick, dt):
     """The gravity gradient's work over the step on a scene with a fixed axis [J] (a free
     hub's is counted in its node pass). The step calls it only for a scene with the
-    field."""
+    field (pruned as :func:`field_loads`)."""
     w = 0.0
-    if axis is not None:
+    if axis is not None and tidal is not None:
         w = axis_field_work(field, tidal, mv, kick, dt)
     return w
 
