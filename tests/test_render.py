@@ -110,6 +110,46 @@ def test_falls_back_when_the_test_render_crashes(demo_h5, tmp_path, monkeypatch,
     assert_picture(np.asarray(Image.open(out).convert("RGB")))
 
 
+class FakeProbe:
+    """Stands in for render._Probe: counts the test renders started and stopped."""
+
+    started: list = []
+
+    def __init__(self, timeout=120.0):
+        self.stopped = False
+        FakeProbe.started.append(self)
+
+    def result(self):
+        return False, "fake test render"
+
+    def stop(self):
+        self.stopped = True
+
+
+def test_the_test_render_starts_early_and_runs_once(demo_h5, tmp_path, monkeypatch):
+    """'auto' starts the test render before it reads the file (it runs on another core while
+    this process reads and imports pyvista); the answer is the one of that render, asked
+    once per process."""
+    monkeypatch.setattr(rd, "_Probe", FakeProbe)
+    monkeypatch.setattr(rd, "_answer", [])
+    monkeypatch.setattr(FakeProbe, "started", [])
+    info = rd.render(demo_h5, tmp_path / "a.png", size=SIZE)
+    assert info["renderer"].startswith("matplotlib")  # the fake says pyvista cannot render
+    rd.render(demo_h5, tmp_path / "b.png", size=SIZE)
+    assert len(FakeProbe.started) == 1 and not FakeProbe.started[0].stopped
+    assert rd.pyvista_works() == (False, "fake test render") and not rd._pending
+
+
+def test_a_test_render_no_one_asked_is_stopped(tmp_path, monkeypatch):
+    """A picture that fails after the test render started (here: no such file) stops it."""
+    monkeypatch.setattr(rd, "_Probe", FakeProbe)
+    monkeypatch.setattr(rd, "_answer", [])
+    monkeypatch.setattr(FakeProbe, "started", [])
+    with pytest.raises(InputError):
+        rd.render(tmp_path / "missing.h5", tmp_path / "a.png", size=SIZE)
+    assert len(FakeProbe.started) == 1 and FakeProbe.started[0].stopped and not rd._pending
+
+
 def test_probe_survives_a_crashing_vtk(monkeypatch):
     """An OpenGL back end that is not installed (here OSMesa) crashes VTK in the child only."""
     monkeypatch.setenv("VTK_DEFAULT_OPENGL_WINDOW", "vtkOSMesaRenderWindow")

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from spinweb_fe import case as case_mod
-
 
 def add_case_args(p: argparse.ArgumentParser, out=True):
     p.add_argument("case", help="case file (TOML, SI units)")
@@ -18,6 +16,8 @@ def add_case_args(p: argparse.ArgumentParser, out=True):
 
 
 def load_case(args):
+    from spinweb_fe import case as case_mod  # numba and the solver: not for the parser
+
     return case_mod.load(args.case, args.sets)
 
 

@@ -22,7 +22,6 @@ between frames), MP4 through imageio with imageio-ffmpeg (H.264, yuv420p):
 from __future__ import annotations
 
 import contextlib
-import functools
 import logging
 import math
 import subprocess
@@ -242,6 +241,38 @@ with pv.vtk_verbosity("off"):
 """
 
 
+class _Probe:
+    """The test render of :func:`probe_pyvista` in a child process, started at once; its
+    answer is taken by :meth:`result`."""
+
+    def __init__(self, timeout: float = 120.0):
+        self.timeout, self.proc, self.error = timeout, None, ""
+        try:
+            self.proc = subprocess.Popen([sys.executable, "-c", _PROBE], text=True,
+                                         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE)
+        except OSError as exc:
+            self.error = f"test render did not finish: {exc}"
+
+    def result(self) -> tuple[bool, str]:
+        if self.proc is None:
+            return False, self.error
+        try:
+            out, err = self.proc.communicate(timeout=self.timeout)
+        except subprocess.TimeoutExpired as exc:
+            self.stop()
+            return False, f"test render did not finish: {exc}"
+        if self.proc.returncode != 0:
+            last = (err.strip().splitlines() or [""])[-1]
+            return False, f"test render exited with code {self.proc.returncode} {last}".strip()
+        return True, out.strip()
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.communicate()
+
+
 def probe_pyvista(timeout: float = 120.0) -> tuple[bool, str]:
     """Render a tiny picture with pyvista in a child process.
 
@@ -253,21 +284,34 @@ def probe_pyvista(timeout: float = 120.0) -> tuple[bool, str]:
     (bool, str)
         Whether it worked, and the render window class or the reason it did not.
     """
-    try:
-        r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                           timeout=timeout)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return False, f"test render did not finish: {exc}"
-    if r.returncode != 0:
-        last = (r.stderr.strip().splitlines() or [""])[-1]
-        return False, f"test render exited with code {r.returncode} {last}".strip()
-    return True, r.stdout.strip()
+    return _Probe(timeout).result()
 
 
-@functools.lru_cache(maxsize=1)
+_answer: list = []  # pyvista_works's answer, once per process
+_pending: list = []  # a test render started by start_probe, not yet asked
+
+
+def start_probe() -> None:
+    """Start :func:`pyvista_works`'s test render now, so that it runs on another core while
+    this process reads the result file and imports pyvista (a second on a cold start);
+    nothing if it has answered or started already."""
+    if not _answer and not _pending:
+        _pending.append(_Probe())
+
+
 def pyvista_works() -> tuple[bool, str]:
-    """:func:`probe_pyvista`, once per process."""
-    return probe_pyvista()
+    """:func:`probe_pyvista`, once per process (the test render :func:`start_probe` started,
+    if it did)."""
+    if not _answer:
+        probe = _pending.pop() if _pending else _Probe()
+        _answer.append(probe.result())
+    return _answer[0]
+
+
+def _drop_probe() -> None:
+    """Stop a test render that no one asked (the picture failed before, or needed none)."""
+    while _pending:
+        _pending.pop().stop()
 
 
 def _open_canvas(renderer, scene, size, clim, radius, first, view=None, box=None):
@@ -276,6 +320,8 @@ def _open_canvas(renderer, scene, size, clim, radius, first, view=None, box=None
         raise InputError("--renderer", "", f"unknown renderer '{renderer}' "
                          f"(valid: {', '.join(RENDERERS)})")
     if renderer == "auto":
+        with contextlib.suppress(Exception):  # VTK's libraries load while the test renders
+            import pyvista.plotting  # noqa: F401
         ok, why = pyvista_works()
         if not ok:
             log.warning("pyvista cannot render off-screen (%s); using matplotlib", why)
@@ -342,6 +388,16 @@ def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
     w, h = (int(v) for v in size)
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
         raise InputError("--size", "", f"{w}x{h} pixels: each side must be 16 .. 8192")
+    if renderer == "auto":
+        start_probe()
+    try:
+        return _draw(result, out, suffix, frame, time, fps, (w, h), renderer, camera)
+    finally:
+        _drop_probe()
+
+
+def _draw(result, out, suffix, frame, time, fps, size, renderer, camera) -> dict:
+    """:func:`render` after its checks."""
     scene = load_scene(result)
     frames = [pick_frame(scene, frame, time)] if suffix == ".png" else list(range(scene.n_frames))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -353,7 +409,7 @@ def render(result, out, frame=None, time=None, fps=10.0, size=(900, 900),
             box, radius = oblique_box(scene, frames, camera)
         else:
             radius = view_radius(scene, frames)
-        canvas, img = _open_canvas(renderer, scene, (w, h), clim, radius, frames[0], camera,
+        canvas, img = _open_canvas(renderer, scene, size, clim, radius, frames[0], camera,
                                    box)
         try:
             writer.append(img)
