@@ -52,8 +52,9 @@ def test_a_release_keeps_momentum_and_energy_to_round_off():
         for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
             i = coil.level_nodes[p]
             inertia -= model.nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
-        coil_mod.level_masses(coil, cs_, model.nodes, state.node_mass, state.node_inv_mass,
-                              lev, lev + 1, False)
+        coil_mod.level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass,
+                              model.nodes.mass, model.nodes.inv_mass, state.node_mass,
+                              state.node_inv_mass, lev, lev + 1, False)
         cs_.front[k] += 1
     state.hub.inertia[0] = inertia
     E1, K1 = invariants(model, state)

@@ -424,7 +424,8 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
             s_new = cs.s_dev[k]
         # the held nodes the energies count turn with the hub's rate now (every held node
         # and the tied ones follow once, after the last arm)
-        place_levels(coil, cs, mv.pos, mv.vel, hs.angle[0], w, k, lev, lev)
+        place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
+                     mv.pos, mv.vel, hs.angle[0], w, k, lev, lev)
         e0 = line_energy(coil, cs, k, elems, mv, lev, lev) + 0.5 * j * w * w
         steps[0, 0] = -1.0
         e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
@@ -440,13 +441,15 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
         w += out[5] / j  # the moment of the device's reaction about the axis
         pose[6, 2] = w
         moved = True
-        place_levels(coil, cs, mv.pos, mv.vel, hs.angle[0], w, k, lev, lev1)
+        place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
+                     mv.pos, mv.vel, hs.angle[0], w, k, lev, lev1)
         e1 = (line_energy(coil, cs, k, elems, mv, lev, lev1) + 0.5 * j * w * w
               + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
         cs.dev_work[k] += e1 - e0
     if moved:
         place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
-        place_held(coil, cs, mv.pos, mv.vel, hs.angle[0], w)
+        place_held(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
+                   mv.pos, mv.vel, hs.angle[0], w)
     hs.rate[0], hs.inertia[0] = w, j
 
 

@@ -181,32 +181,41 @@ def coil_start(coil: Coil) -> CoilState:
                      z.copy(), z.copy(), z.copy(), np.zeros(3), z.copy())
 
 
+# The kernels the initial state calls from Python (level_masses, place_held, held_inertia)
+# take the coil's arrays, not its tuple (Coil, 23 arrays): numba's wrapper for a call from
+# Python unpacks every array of every tuple, 0.3 s of compile for each such kernel on a
+# cold start (docs/performance.md).
+
+
 @njit(cache=True)
-def level_masses(coil, cs, nodes, mass, inv_mass, lo, hi, bundled):
-    """Active masses of the nodes of levels lo..hi-1 once released: their own, or (bundled)
-    the level's mass on its spine node and none on the others."""
+def level_masses(level_ptr, level_nodes, level_mass, node_mass, node_inv_mass, mass, inv_mass,
+                 lo, hi, bundled):
+    """Active masses of the nodes of levels lo..hi-1 once released: their own
+    (``node_mass``, ``node_inv_mass``: the model's), or (bundled) the level's mass on its
+    spine node and none on the others. ``level_*``: the Coil's."""
     for lev in range(lo, hi):
-        a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
+        a, b = level_ptr[lev], level_ptr[lev + 1]
         for p in range(a, b):
-            i = coil.level_nodes[p]
+            i = level_nodes[p]
             if bundled:
                 first = p == a
-                mass[i] = coil.level_mass[lev] if first else 0.0
-                inv_mass[i] = 1.0 / coil.level_mass[lev] if first else 0.0
+                mass[i] = level_mass[lev] if first else 0.0
+                inv_mass[i] = 1.0 / level_mass[lev] if first else 0.0
             else:
-                mass[i] = nodes.mass[i]
-                inv_mass[i] = nodes.inv_mass[i]
+                mass[i] = node_mass[i]
+                inv_mass[i] = node_inv_mass[i]
 
 
 @njit(cache=True)
-def held_inertia(coil, cs, nodes):
-    """sum m (x^2 + y^2) [kg m^2] of the held nodes, from their hub-frame positions."""
+def held_inertia(arm_ptr, front, level_ptr, level_nodes, level_ref, node_mass):
+    """sum m (x^2 + y^2) [kg m^2] of the held nodes, from their hub-frame positions
+    (``front`` the CoilState's, ``node_mass`` the model's, the rest the Coil's)."""
     j = 0.0
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        for lev in range(coil.arm_ptr[k] + cs.front[k], coil.arm_ptr[k + 1]):
-            for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
-                i = coil.level_nodes[p]
-                j += nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
+    for k in range(arm_ptr.shape[0] - 1):
+        for lev in range(arm_ptr[k] + front[k], arm_ptr[k + 1]):
+            for p in range(level_ptr[lev], level_ptr[lev + 1]):
+                i = level_nodes[p]
+                j += node_mass[i] * (level_ref[p, 0] ** 2 + level_ref[p, 1] ** 2)
     return j
 
 
@@ -222,30 +231,33 @@ def any_held(arm_ptr, front):
 
 
 @njit(cache=True)
-def place_levels(coil, cs, pos, vel, theta, omega, k, lo, hi):
+def place_levels(arm_ptr, front, level_ptr, level_nodes, level_ref, pos, vel, theta, omega,
+                 k, lo, hi):
     """The held nodes of arm k's levels lo..hi (those at or behind its front) move with
     the hub, as :func:`place_held` moves them all."""
     c = np.cos(theta)
     s = np.sin(theta)
-    a = max(lo, coil.arm_ptr[k] + cs.front[k])
-    b = min(hi + 1, coil.arm_ptr[k + 1])
-    for p in range(coil.level_ptr[a] if a < b else 0, coil.level_ptr[b] if a < b else 0):
-        i = coil.level_nodes[p]
-        x = c * coil.level_ref[p, 0] - s * coil.level_ref[p, 1]
-        y = s * coil.level_ref[p, 0] + c * coil.level_ref[p, 1]
+    a = max(lo, arm_ptr[k] + front[k])
+    b = min(hi + 1, arm_ptr[k + 1])
+    for p in range(level_ptr[a] if a < b else 0, level_ptr[b] if a < b else 0):
+        i = level_nodes[p]
+        x = c * level_ref[p, 0] - s * level_ref[p, 1]
+        y = s * level_ref[p, 0] + c * level_ref[p, 1]
         pos[i, 0] = x
         pos[i, 1] = y
-        pos[i, 2] = coil.level_ref[p, 2]
+        pos[i, 2] = level_ref[p, 2]
         vel[i, 0] = -omega * y
         vel[i, 1] = omega * x
         vel[i, 2] = 0.0
 
 
 @njit(cache=True)
-def place_held(coil, cs, pos, vel, theta, omega):
-    """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x."""
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        place_levels(coil, cs, pos, vel, theta, omega, k, 0, coil.arm_ptr[k + 1])
+def place_held(arm_ptr, front, level_ptr, level_nodes, level_ref, pos, vel, theta, omega):
+    """Held nodes move with the hub: x = R(theta) x_hub, v = omega z x x (``front`` the
+    CoilState's, the rest the Coil's)."""
+    for k in range(arm_ptr.shape[0] - 1):
+        place_levels(arm_ptr, front, level_ptr, level_nodes, level_ref, pos, vel, theta,
+                     omega, k, 0, arm_ptr[k + 1])
 
 
 @njit(cache=True)
@@ -381,7 +393,8 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
         for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
             i = coil.level_nodes[p]
             inertia -= nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
-        level_masses(coil, cs, nodes, mass, inv_mass, lev, lev + 1, cs.bundled[k])
+        level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass,
+                     nodes.inv_mass, mass, inv_mass, lev, lev + 1, cs.bundled[k])
         cs.front[k] += 1
     return inertia
 
@@ -403,7 +416,8 @@ def open_bundles(coil, cs, nodes, mass, inv_mass, t):
             due = free_length(coil, cs, k) >= coil.bundle_value * span - 1e-12 * span
         if due:
             cs.bundled[k] = False
-            level_masses(coil, cs, nodes, mass, inv_mass, coil.arm_ptr[k],
+            level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass,
+                         nodes.inv_mass, mass, inv_mass, coil.arm_ptr[k],
                          coil.arm_ptr[k] + cs.front[k], cs.bundled[k])
 
 

@@ -286,7 +286,8 @@ def _release(coil, cs, k, nodes, mass, inv_mass, lev):
     for p in range(coil.level_ptr[lev], coil.level_ptr[lev + 1]):
         i = coil.level_nodes[p]
         j += nodes.mass[i] * (coil.level_ref[p, 0] ** 2 + coil.level_ref[p, 1] ** 2)
-    level_masses(coil, cs, nodes, mass, inv_mass, lev, lev + 1, False)
+    level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass, nodes.inv_mass,
+                 mass, inv_mass, lev, lev + 1, False)
     cs.front[k] += 1
     return j
 

@@ -158,10 +158,13 @@ def initial_state(model, omega: float, spin: str = "all", tilt_rate: float = 0.0
     mass[held_nodes] = 0.0
     inv[held_nodes] = 0.0
     for k, f in enumerate(cs.front):  # the free levels, bundled or not
-        level_masses(coil, cs, model.nodes, mass, inv, coil.arm_ptr[k], coil.arm_ptr[k] + f,
+        level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, model.nodes.mass,
+                     model.nodes.inv_mass, mass, inv, coil.arm_ptr[k], coil.arm_ptr[k] + f,
                      bool(cs.bundled[k]))
-    place_held(coil, cs, pos, vel, 0.0, omega)
-    inertia = hub.j_eff + held_inertia(coil, cs, model.nodes)
+    place_held(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref, pos,
+               vel, 0.0, omega)
+    inertia = hub.j_eff + held_inertia(coil.arm_ptr, cs.front, coil.level_ptr,
+                                       coil.level_nodes, coil.level_ref, model.nodes.mass)
     if coil.payout_code >= 2:  # a reel or a brake holds each arm's line at its tip
         inertia += start_devices(coil, cs, model.nodes, mass, inv)
         locate_devices(coil, cs, axis_pose(0.0, omega))

@@ -199,7 +199,8 @@ def place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, omega):
 def place_coil(axis, coil, cs, pos, vel, theta, omega):
     """The held coil moves with a fixed axis at theta_{n+1} (only while some arm is held)."""
     if axis is not None:
-        place_held(coil, cs, pos, vel, theta, omega)
+        place_held(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
+                   pos, vel, theta, omega)
 
 
 @njit(inline="always")
