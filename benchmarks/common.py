@@ -180,4 +180,4 @@ def model_bytes(model):
     n = model.n_nodes
     arrays = (*model.nodes, *model.elements[:-1], *model.links,
               *make_work(n, model.n_elems))
-    return sum(a.nbytes for a in arrays if a is not None) + n * 3 * 8 * 2  # + pos, vel
+    return sum(a.nbytes for a in arrays) + n * 3 * 8 * 2  # + pos, vel

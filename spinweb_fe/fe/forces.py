@@ -73,9 +73,6 @@ class Work(NamedTuple):
         Element tensions, written on record steps and by damped elements.
     inside : (n,) bool
         The node update's mark of the nodes heading inside the hub this step.
-    tidal : (n, 3) float64 [N] or None
-        The gravity gradient's force on each node (fe.axis.axis_field). None on a scene
-        without the field on a fixed axis: numba then compiles none of the field's phases.
     ef : (3, m + 1) float64 [N]
         Element force vectors f_e (column m stays zero: the padding slot).
     buf : (chunks, 8, BLOCK) float64
@@ -96,7 +93,6 @@ class Work(NamedTuple):
     force: np.ndarray
     tension: np.ndarray
     inside: np.ndarray
-    tidal: np.ndarray | None
     ef: np.ndarray
     buf: np.ndarray
     eout: np.ndarray
@@ -129,16 +125,15 @@ def make_links(elem_nodes: np.ndarray, n_nodes: int) -> Links:
 
 
 def make_work(n_nodes: int, n_elems: int, chunks: int = 1, block: int = BLOCK,
-              tidal: bool = False, elem_nodes: np.ndarray | None = None) -> Work:
+              elem_nodes: np.ndarray | None = None) -> Work:
     """A :class:`Work` for a model, with gather buffers for ``chunks`` threads and blocks of
-    ``block`` elements (and nodes), and (``tidal``) the gravity gradient's node forces. With
-    ``elem_nodes`` (m, 2) the threads take the element blocks in :func:`thread_order`, else
-    in element order (one thread: the order is not used)."""
+    ``block`` elements (and nodes). With ``elem_nodes`` (m, 2) the threads take the element
+    blocks in :func:`thread_order`, else in element order (one thread: the order is not
+    used)."""
     blocks = max(1, -(-n_elems // block))
     order = (thread_order(elem_nodes, block) if elem_nodes is not None
              else np.arange(blocks, dtype=np.int64))
     return Work(np.zeros((n_nodes, 3)), np.zeros(n_elems), np.zeros(n_nodes, np.bool_),
-                np.zeros((n_nodes, 3)) if tidal else None,
                 np.zeros((3, n_elems + 1)),
                 np.zeros((chunks, 8, block)),
                 np.zeros((blocks, 8)),

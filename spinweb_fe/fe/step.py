@@ -114,24 +114,23 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
     return se, tmax, pdamp
 
 
-@njit(cache=True)
+@njit(inline="always")
 def field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field, holding):
     """The gravity gradient's loads at x_n on a scene with a fixed axis (fe.axis.axis_field;
     a free hub takes the field in its own phases). The step calls it only for a scene with
-    the field; ``tidal`` (fe.forces.Work) None: numba compiles none of it (a call, not
-    inlined, so that numba can prune the branch by the argument's type)."""
-    if axis is not None and tidal is not None:
+    the field."""
+    if axis is not None:
         axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
                    holding)
 
 
-@njit(cache=True)
+@njit(inline="always")
 def field_work(axis, env, field, tidal, mv, kick, dt):
     """The gravity gradient's work over the step on a scene with a fixed axis [J] (a free
     hub's is counted in its node pass). The step calls it only for a scene with the
-    field (pruned as :func:`field_loads`)."""
+    field."""
     w = 0.0
-    if axis is not None and tidal is not None:
+    if axis is not None:
         w = axis_field_work(field, tidal, mv, kick, dt)
     return w
 
@@ -357,7 +356,7 @@ def write_row(row, sr, t, theta, w, torque, ke, se, lz, tmax, totals, incr):
 
 @njit(cache=True, nogil=True)
 def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, threads=None,
-            audit=None, contact=None):
+            audit=None, contact=None, tidal=None):
     """Run ``nsteps`` central-difference steps; record a history row every ``rec.every`` steps.
 
     ``model`` is the kernel view of the Model (``Model.kernel``), ``axis`` and ``body`` its
@@ -372,20 +371,21 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     the workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
     reduction order). ``audit`` (fe.touch.AuditKernel) and ``contact``
     (fe.touch.ContactKernel), if given, the crossing audit and the cable-cable contact
-    (fe.touch: numba compiles none of it without them). Returns (status, rows): 0 ok, 1
+    (fe.touch: numba compiles none of it without them). ``tidal`` (n, 3): the gravity
+    gradient's node forces on a fixed axis (fe.axis.axis_field; None: a scene without the
+    field, or a free hub, and numba compiles none of it). Returns (status, rows): 0 ok, 1
     non-finite, fe.touch.SERVICE: stopped after a step for the audit's list.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     env, strength = model.env, model.strength
     has_strength = checks_strength(strength)
     pos, vel, force = state.node_pos, state.node_vel, work.force
-    totals, tidal = state.totals, work.tidal
+    totals = state.totals
     field = np.zeros(2)
     sums = np.zeros(5)
     incr = np.zeros(totals.shape[0])
     vprobe = np.zeros((rec.probes.shape[0], 3))
     has_coil = coil.level_nodes.shape[0] > 0
-    has_field = env.n > 0.0
     # the state's arrays taken out once: every use of a tuple's field inside the loop, and
     # every tuple handed to a compiled function, costs NRT reference counts (an atomic add
     # per array), which made 40 % of a 200-element step
@@ -412,7 +412,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
-        if has_field:
+        if tidal is not None:  # the field on a fixed axis (pruned by numba when None)
             field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field,
                         holding)
         if contact is not None:  # the cable contact's penalty
@@ -443,7 +443,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         incr[term.damping_dissipation] = pdamp * dt
         incr[term.contact_dissipation] = dcontact
         wfield = 0.0
-        if has_field:
+        if tidal is not None:
             wfield = field_work(axis, env, field, tidal, mv, kick, dt)
         incr[term.gravity_gradient_work] = wgrav + wfield
         theta = hub_angle[0]

@@ -133,8 +133,11 @@ class _Chunks:
     def __init__(self, model, control, tracker, rec_every, threads, dt, vectors=False):
         self.args = (model.kernel, *model.hub_kind, control.kernel)
         self.work = make_work(model.n_nodes, model.n_elems, threads,
-                              tidal=model.env.n > 0.0 and not model.free_hub,
                               elem_nodes=model.elements.nodes)
+        # the gravity gradient's node forces on a fixed axis (None: numba compiles none of
+        # the field's phases; a free hub takes the field in its own)
+        self.tidal = (np.zeros((model.n_nodes, 3)) if model.env.n > 0.0 and not model.free_hub
+                      else None)
         # None on one thread, so that numba compiles no thread kernel
         self.threads = None if threads == 1 else threads
         rows = ROWS_PER_CHUNK + 1
@@ -158,7 +161,7 @@ class _Chunks:
     def loop_args(self, state, dt, nsteps, audit=None, contact=None) -> tuple:
         """The arguments of fe.step.advance for ``nsteps`` steps of ``state``."""
         return (*self.args, state, self.work, self.rec, dt, nsteps, self.vec, self.threads,
-                audit, contact)
+                audit, contact, self.tidal)
 
     def advance(self, state, dt, nsteps, audit=None, contact=None):
         return step.advance(*self.loop_args(state, dt, nsteps, audit, contact))
