@@ -336,7 +336,8 @@ def test_held_coil_takes_the_moment_of_the_forces_on_it():
     f = rng.normal(size=(model.n_nodes, 3))
     pos = state.node_pos
     expect = np.sum(pos[held, 0] * f[held, 1] - pos[held, 1] * f[held, 0])
-    got = coil_mod.held_moment(coil, state.coil, pos, f)
+    got = coil_mod.held_moment(coil.arm_ptr, state.coil.front, coil.level_ptr, coil.level_nodes,
+                               pos, f)
     assert got == pytest.approx(expect, rel=1e-12)
     h = simulate(model, control, state, dt, Schedule(0.03, 1e-4), energy_limit=np.inf).history
     assert h["max_tension"].max() > 100.0 and np.any(state.coil.front > 1)  # it pulls, pays out

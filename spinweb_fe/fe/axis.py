@@ -123,7 +123,8 @@ def axis_field(env, t, nodes, tied_idx, coil, cs, bundles, mv, force, tidal, fie
     node_tidal(env, t, mv.pos, nodes.mass, force, tidal)
     tau = moment_of(mv.pos, tidal, tied_idx)
     if holding:
-        tau += held_moment(coil, cs, mv.pos, tidal)
+        tau += held_moment(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, mv.pos,
+                           tidal)
     gather_bundles(bundles, cs, tidal)
     field[0] = tidal_power(tidal, mv.vel, mv.inv_mass)
     field[1] = tau
@@ -468,7 +469,10 @@ def axis_start(model, law, state, force, dt):
     if model.bundles is not None:
         gather_bundles(model.bundles, state.coil, force)
     vel -= 0.5 * dt * force * state.node_inv_mass[:, None]
-    tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil, state.coil, pos, force)
+    cs = state.coil
+    tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil.arm_ptr, cs.front,
+                                                            coil.level_ptr, coil.level_nodes,
+                                                            pos, force)
     rate = state.hub.rate
     prescribed, value = eval_control(law, 0.0, rate[0])
     if prescribed:

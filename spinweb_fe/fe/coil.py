@@ -182,9 +182,9 @@ def coil_start(coil: Coil) -> CoilState:
 
 
 # The kernels the initial state calls from Python (level_masses, place_held, held_inertia)
-# take the coil's arrays, not its tuple (Coil, 23 arrays): numba's wrapper for a call from
-# Python unpacks every array of every tuple, 0.3 s of compile for each such kernel on a
-# cold start (docs/performance.md).
+# and held_moment take the coil's arrays, not its tuple (Coil, 23 arrays): numba types and
+# unpacks every array of every tuple a kernel takes, 0.2-0.3 s of compile for each such
+# kernel on a cold start (docs/performance.md).
 
 
 @njit(cache=True)
@@ -261,13 +261,14 @@ def place_held(arm_ptr, front, level_ptr, level_nodes, level_ref, pos, vel, thet
 
 
 @njit(cache=True)
-def held_moment(coil, cs, pos, force):
-    """z-moment of the element forces ``force`` (n, 3) on the held nodes."""
+def held_moment(arm_ptr, front, level_ptr, level_nodes, pos, force):
+    """z-moment of the element forces ``force`` (n, 3) on the held nodes (``front`` the
+    CoilState's, the rest the Coil's: arrays, see :func:`level_masses`)."""
     tau = 0.0
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        a = coil.level_ptr[coil.arm_ptr[k] + cs.front[k]]
-        for p in range(a, coil.level_ptr[coil.arm_ptr[k + 1]]):
-            i = coil.level_nodes[p]
+    for k in range(arm_ptr.shape[0] - 1):
+        a = level_ptr[arm_ptr[k] + front[k]]
+        for p in range(a, level_ptr[arm_ptr[k + 1]]):
+            i = level_nodes[p]
             tau += pos[i, 0] * force[i, 1] - pos[i, 1] * force[i, 0]
     return tau
 

@@ -143,7 +143,8 @@ def held_loads(axis, coil, cs, pos, force, tau):
     handed over only then (each array a call or an inlined phase receives costs a
     reference count, per step)."""
     if axis is not None:
-        tau += held_moment(coil, cs, pos, force)
+        tau += held_moment(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, pos,
+                           force)
         if coil.payout_code >= 2:
             tau += cs.dev_moment[2]
     return tau
