@@ -146,6 +146,16 @@ MUTANTS = (
            "state.strength.broken, None)),",
            "compile helper: a phase listed with other types than the loop passes (its work "
            "lost, the phase compiled twice)", ("tests/test_warmup.py",)),
+    Mutant("field_forces_never_passed", "spinweb_fe/run/loop.py",
+           "audit, contact, self.tidal)",
+           "audit, contact, None)",
+           "the step loop never gets the gravity gradient's node forces on a fixed axis (numba "
+           "prunes the field: no tidal loads)", ("tests/test_free_hub.py",)),
+    Mutant("render_probe_left_running", "spinweb_fe/post/render.py",
+           "_pending.pop().stop()",
+           "_pending.pop()",
+           "a test render no one asked is left running when a picture fails",
+           ("tests/test_render.py",)),
     Mutant("kinetic_energy_new_half_step", "spinweb_fe/fe/axis.py",
            "ke = 0.5 * (sums[0] + sums[1]) + 0.25 * j_eff * (w_old * w_old + w_new * w_new)",
            "ke = sums[1] + 0.5 * j_eff * w_new * w_new",
