@@ -461,18 +461,16 @@ def axis_start(model, law, state, force, dt):
     Python, not a kernel: it runs once, and a kernel taking the whole model and state costs
     about a second of cold compile for their unboxing alone. The compiled helpers it calls
     are the step loop's own; the arithmetic is the same, in the same order (bit for bit)."""
-    hub, coil = model.hub, model.coil
+    hub, coil, cs = model.hub, model.coil, state.coil
     pos = state.node_pos
     vel = state.node_vel
     if model.env.n > 0.0:  # the gravity gradient's forces (fe.axis.axis_field)
         node_tidal(model.env, 0.0, pos, model.nodes.mass, force, np.zeros_like(force))
     if model.bundles is not None:
-        gather_bundles(model.bundles, state.coil, force)
+        gather_bundles(model.bundles, cs, force)
     vel -= 0.5 * dt * force * state.node_inv_mass[:, None]
-    cs = state.coil
-    tau = moment_of(pos, force, hub.tied_idx) + held_moment(coil.arm_ptr, cs.front,
-                                                            coil.level_ptr, coil.level_nodes,
-                                                            pos, force)
+    tau = (moment_of(pos, force, hub.tied_idx)
+           + held_moment(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, pos, force))
     rate = state.hub.rate
     prescribed, value = eval_control(law, 0.0, rate[0])
     if prescribed:
