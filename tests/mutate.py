@@ -146,9 +146,9 @@ MUTANTS = (
            "state.strength.broken, None)),",
            "compile helper: a phase listed with other types than the loop passes (its work "
            "lost, the phase compiled twice)", ("tests/test_warmup.py",)),
-    Mutant("field_forces_never_passed", "spinweb_fe/run/loop.py",
-           "audit, contact, self.tidal)",
-           "audit, contact, None)",
+    Mutant("field_forces_never_passed", "spinweb_fe/record/parts.py",
+           "    def kernel(self, hooks: dict):\n        return self.tidal",
+           "    def kernel(self, hooks: dict):\n        return None",
            "the step loop never gets the gravity gradient's node forces on a fixed axis (numba "
            "prunes the field: no tidal loads)", ("tests/test_free_hub.py",)),
     Mutant("render_probe_left_running", "spinweb_fe/post/render.py",
@@ -434,8 +434,8 @@ MUTANTS = (
            "the free hub's reaction in the step's last pass moves it after the pass's test",
            ZONE_TESTS),
     Mutant("free_hub_no_contact_reaction", "spinweb_fe/fe/cable_contact.py",
-           "work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt,\n"
-           "                                     ck.follow, place)",
+           "work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, h0.velocity,\n"
+           "                                     h0.omega, dt, ck.follow, place)",
            "work_hub = 0.0",
            "a free hub does not take the reaction of the contact's impulses", CONTACT_TESTS),
     Mutant("audit_released_only", "spinweb_fe/record/crossings.py",

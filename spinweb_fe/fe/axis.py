@@ -26,7 +26,7 @@ from spinweb_fe.fe.contact import contact_node
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.line import line_energy, line_pairing
 from spinweb_fe.fe.brake import device_target
-from spinweb_fe.fe.payout import locate_devices, move_line, rest_ref
+from spinweb_fe.fe.payout import Pose, locate_devices, move_line, no_reaction, rest_ref
 from spinweb_fe.fe.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
@@ -388,13 +388,14 @@ def axis_vector_row(hub, coil, cs, nodes, pos, theta, w, j_eff, row, vs):
 
 @njit(cache=True)
 def axis_pose(theta, omega):
-    """The pose rows of fe.payout.locate_devices for a hub on the fixed axis at theta
-    turning at omega: R = Rz(theta), the centres at the origin, no velocity there."""
-    pose = np.zeros((7, 3))
+    """The fe.payout.Pose of a hub on the fixed axis at theta turning at omega: R =
+    Rz(theta), the centres at the origin, no velocity there."""
+    R = np.zeros((3, 3))
     c, s = np.cos(theta), np.sin(theta)
-    pose[0, 0], pose[0, 1], pose[1, 0], pose[1, 1], pose[2, 2] = c, -s, s, c, 1.0
-    pose[6, 2] = omega
-    return pose
+    R[0, 0], R[0, 1], R[1, 0], R[1, 1], R[2, 2] = c, -s, s, c, 1.0
+    w = np.zeros(3)
+    w[2] = omega
+    return Pose(R, np.zeros(3), np.zeros(3), np.zeros(3), w)
 
 
 @njit(cache=True)
@@ -409,7 +410,7 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
     w, j = hs.rate[0], hs.inertia[0]
     pose = axis_pose(hs.angle[0], w)
     locate_devices(coil, cs, pose)
-    out = np.zeros(7)
+    out = no_reaction()
     steps = np.empty((coil.test_elem.shape[0] + 1, 3))
     moved = False
     for k in range(coil.arm_ptr.shape[0] - 1):
@@ -432,15 +433,17 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
         e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
         r = rest_ref(coil, k, lev)
         rest0 = cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
-        out[:] = 0.0
+        out.impulse[:] = 0.0
+        out.moment[:] = 0.0
+        out.inertia[:] = 0.0
         move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
         lev1 = coil.arm_ptr[k] + cs.front[k]
         if lev1 < coil.arm_ptr[k + 1]:
             r = rest_ref(coil, k, lev1)
             j += cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
-        j -= rest0 + out[6]
-        w += out[5] / j  # the moment of the device's reaction about the axis
-        pose[6, 2] = w
+        j -= rest0 + out.inertia[0]
+        w += out.moment[2] / j  # the moment of the device's reaction about the axis
+        pose.omega[2] = w
         moved = True
         place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
                      mv.pos, mv.vel, hs.angle[0], w, k, lev, lev1)

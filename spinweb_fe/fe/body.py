@@ -25,7 +25,7 @@ from numba import njit
 from spinweb_fe.fe.coil import gather_bundles, release_fronts, scatter_bundles
 from spinweb_fe.fe.line import line_energy, line_pairing
 from spinweb_fe.fe.brake import device_target
-from spinweb_fe.fe.payout import locate_devices, move_line
+from spinweb_fe.fe.payout import Pose, locate_devices, move_line, no_reaction
 from spinweb_fe.fe.contact import contact_free
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
@@ -100,7 +100,7 @@ def body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt):
     counts a reference for every array a call hands over.)"""
     R = rotation(rs.quaternion)
     F, T = body_loads(hub, coil, cs, rs.position, pos, force)
-    if coil.payout_code >= 2:  # a reel's or brake's line pulls at D (fe.payout)
+    if coil.device:  # a reel's or brake's line pulls at D (fe.payout)
         T += cs.dev_moment
     Fg = np.zeros(3)
     Tg = np.zeros(3)
@@ -249,16 +249,11 @@ def body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken):
 
 @njit(cache=True)
 def body_pose(rs):
-    """The pose rows of fe.payout.locate_devices of the free body now: its attitude, the hub
-    centre, the centre of mass, its velocity and angular velocity."""
+    """The fe.payout.Pose of the free body now: its attitude, the hub centre, the centre of
+    mass, its velocity and angular velocity (copies)."""
     R = rotation(rs.quaternion)
-    pose = np.empty((7, 3))
-    pose[0:3] = R
-    pose[3] = hub_centre(rs, R)
-    pose[4] = rs.position
-    pose[5] = rs.velocity
-    pose[6] = inv_inertia(rs, R, rs.momentum)
-    return pose
+    return Pose(R, hub_centre(rs, R), rs.position.copy(), rs.velocity.copy(),
+                inv_inertia(rs, R, rs.momentum))
 
 
 @njit(cache=True)
@@ -272,7 +267,7 @@ def body_devices(coil, body, cs, elems, nodes, hub, rs, mv, hs, t, dt):
         return
     pose = body_pose(rs)
     locate_devices(coil, cs, pose)
-    out = np.zeros(7)
+    out = no_reaction()
     steps = np.empty((coil.test_elem.shape[0] + 1, 3))
     for k in range(coil.arm_ptr.shape[0] - 1):
         lev = coil.arm_ptr[k] + cs.front[k]
@@ -285,17 +280,19 @@ def body_devices(coil, body, cs, elems, nodes, hub, rs, mv, hs, t, dt):
                 continue
         else:
             s_new = cs.s_dev[k]
-        R = pose[0:3].copy()
+        R = pose.rot.copy()
         steps[0, 0] = -1.0
         e0 = (line_energy(coil, cs, k, elems, mv, lev, lev)
               + body_energy(rs, R, rs.velocity, rs.momentum)
               + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
-        out[:] = 0.0
+        out.impulse[:] = 0.0
+        out.moment[:] = 0.0
+        out.inertia[:] = 0.0
         move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
         detach(body, nodes, hub, coil, cs, rs)
-        J = out[0:3]
+        J = out.impulse
         rs.velocity[:] = rs.velocity - J / rs.mass[0]
-        rs.momentum[:] = rs.momentum + out[3:6] + cross(rs.position, J)
+        rs.momentum[:] = rs.momentum + out.moment + cross(rs.position, J)
         pose = body_pose(rs)
         place_body(hub, coil, cs, rs, mv.pos, mv.vel)
         e1 = (line_energy(coil, cs, k, elems, mv, lev, coil.arm_ptr[k] + cs.front[k])

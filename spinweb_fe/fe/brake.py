@@ -40,8 +40,8 @@ def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
     stays: the coil holds it, as the free payout's does."""
     s_old, s_f = cs.s_dev[k], coil.level_coord[lev]
     x_d = cs.dev_x[k]
-    c = pose[3]
-    ax = np.array([pose[0, 2], pose[1, 2], pose[2, 2]])
+    c = pose.centre
+    ax = np.array([pose.rot[0, 2], pose.rot[1, 2], pose.rot[2, 2]])
     r = x_d - c
     r = r - (r[0] * ax[0] + r[1] * ax[1] + r[2] * ax[2]) * ax  # D's radial
     pos, vel = mv.pos, mv.vel

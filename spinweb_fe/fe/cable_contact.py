@@ -48,7 +48,7 @@ from numba import njit
 
 from spinweb_fe.fe.crossing import (boxes_apart, closest_nodes, closest_points,
                                     moved_crosses, pair_crossings, swept_boxes)
-from spinweb_fe.fe.impulses import (axis_reaction, body_reaction, friction_impulses,
+from spinweb_fe.fe.impulses import (HubStart, axis_reaction, body_reaction, friction_impulses,
                                    impulse_work)
 from spinweb_fe.fe.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
                                 pair_adjacency, pairs_of)
@@ -177,10 +177,8 @@ class ContactKernel(NamedTuple):
     elem_nodes, pairs: as the audit's; reach (P,) [m]: each pair's contact distance; hold
     (P, 3): each pair's normal force [N] and closest points at the step's start; vel0,
     vel1, vel2 (n, 3) [m/s]: v_{n-1/2} at the step's start and scratch for the impulses'
-    work; spin (16,): a fixed axis's rate at the step's start [rad/s], the change the
-    fail-safe's reaction made at its end (a free hub: 1 if it took one), the axis's angle
-    [rad] at the step's start, or a free hub's velocity [m/s], angular velocity [rad/s],
-    hub centre [m] and attitude quaternion there (fe.impulses.body_snapshot); force
+    work; hub0: the hub at the step's start and the reaction the fail-safe gave it
+    (fe.impulses.HubStart); force
     (n, 3) [N] and share (n,) int64: scratch; follow (n,) bool: the free nodes that move
     with the hub this step (fe.zones); pos0, active, box: the audit's (x_n, the
     elements its broad phase takes, the swept boxes [m] of the last step); radius [m],
@@ -198,7 +196,7 @@ class ContactKernel(NamedTuple):
     vel0: np.ndarray
     vel1: np.ndarray
     vel2: np.ndarray
-    spin: np.ndarray
+    hub0: HubStart
     force: np.ndarray
     share: np.ndarray
     follow: np.ndarray
@@ -241,9 +239,9 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     first (``ck.mu`` > 0). ``rate``, ``inertia`` ((1,) arrays, a fixed axis's rate
     omega_{n+1/2} and effective inertia): the hub takes the angular impulse about its axis
     that the impulses gave the free nodes, so that nodes held on or tied to it (which take
-    no share of an impulse) push back through it (``ck.spin[1]``: the rate's change).
+    no share of an impulse) push back through it (``ck.hub0.dw``: the rate's change).
     ``body`` (fe.rigid.RigidState, a free hub): the body takes the impulse and the moment
-    (fe.impulses.body_reaction; ``ck.spin[1]`` 1 when it did). The hub's motion over the
+    (fe.impulses.body_reaction; ``ck.hub0.took`` when it did). The hub's motion over the
     step (the fixed axis's turn to ``theta`` [rad], or the body's) moves the free nodes of
     an impact zone that holds a node of the hub (fe.zones). ``again``: a pass after the
     hub, having taken a reaction, placed its nodes again (fe.step.settle): only the pairs
@@ -252,16 +250,18 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     friction. ``place`` False: the hub's reaction changes its velocities only, not its
     pose (fe.step.settle's last pass; fe.impulses)."""
     ck.vel1[:] = vel
-    ck.spin[1] = 0.0
+    h0 = ck.hub0
+    h0.dw[0] = 0.0
+    h0.took[0] = False
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
     if rubbed:
         friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
                           ck.mu)
         ck.vel2[:] = vel
     if rate is not None:
-        hub = axis_map(theta - ck.spin[2])
+        hub = axis_map(theta - h0.angle[0])
     else:
-        hub = body_map(body, ck.spin[8:16])
+        hub = body_map(body, h0.centre, h0.quaternion)
     if again:
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, None, ZONE_ROUNDS, hub,
@@ -281,13 +281,14 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         if rate is not None:
             dw = axis_reaction(pos, ck.vel1, vel, inv_mass, dt, inertia[0], ck.follow, place)
             # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
-            work_hub = inertia[0] * dw * (ck.spin[0] + rate[0] + dw) * 0.5
+            work_hub = inertia[0] * dw * (h0.rate[0] + rate[0] + dw) * 0.5
             rate[0] += dw
-            ck.spin[1] = dw
+            h0.dw[0] = dw
+            h0.took[0] = dw != 0.0
         if body is not None:
-            work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, ck.spin[2:8], dt,
-                                     ck.follow, place)
-            ck.spin[1] = 1.0
+            work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, h0.velocity,
+                                     h0.omega, dt, ck.follow, place)
+            h0.took[0] = True
         # (after the reaction, which the nodes stuck to the hub take too)
         total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass) - work_hub
         rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
@@ -305,95 +306,6 @@ def contact_row(ck, k):
     """Row ``k`` of the call: the stored energy and the fail-safe's dissipation so far."""
     ck.rows[k, 0] = ck.stats[ENERGY]
     ck.rows[k, 1] = ck.stats[TAKEN] + ck.stats[FRICTION]
-
-
-class CableContact:
-    """The contact of a run: its radius [m] and stiffness factor, each listed pair's contact
-    distance, and the step loop's view of it (:meth:`kernel`: a :class:`ContactKernel`, whose
-    ``stats`` say what the last step found and what the fail-safe did so far)."""
-
-    def __init__(self, model, radius: float, kappa: float = KAPPA, friction: float = 0.0):
-        self.radius, self.kappa, self.mu = float(radius), float(kappa), float(friction)
-        self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
-        self.force = np.zeros((model.n_nodes, 3))
-        self.vel0, self.vel1, self.vel2 = (np.zeros((model.n_nodes, 3)) for _ in range(3))
-        self.share = np.zeros(model.n_nodes, np.int64)
-        self.follow = np.zeros(model.n_nodes, np.bool_)
-        self.stats = np.zeros(9)
-        self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
-
-    def sync(self, codes, dist):
-        """A new candidate list (its pairs' sorted ``codes`` and distances at the build
-        [m]): a pair that was listed keeps its contact distance, a new one gets twice the
-        radius or, if closer, its distance now (an overlap at entry is kept, not pushed
-        apart: stacked layers closer than the radius stay as they are until they part)."""
-        reach = np.minimum(2.0 * self.radius, dist)
-        if len(self.codes):
-            i = np.searchsorted(self.codes, codes)
-            i = np.minimum(i, len(self.codes) - 1)
-            same = self.codes[i] == codes
-            reach[same] = self.reach[i[same]]
-        self.codes, self.reach = codes, reach
-
-    def kernel(self, audit, rows: int):
-        """The step loop's view on the audit's list (``audit``: fe.touch.AuditKernel, whose
-        x_n it shares), with room for ``rows`` history rows a call."""
-        if audit.pairs is not getattr(self, "_pairs", None):  # the list was rebuilt
-            self._pairs = audit.pairs
-            self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
-                                         np.zeros((len(audit.pairs), 3)), self.vel0,
-                                         self.vel1, self.vel2, np.zeros(16), self.force,
-                                         self.share, self.follow, audit.pos0, audit.active,
-                                         audit.box,
-                                         self.radius, self.kappa,
-                                         MARGIN * self.radius, ROUNDS, self.mu, self.stats,
-                                         np.zeros((rows, 2)))
-        return self._kernel
-
-    @property
-    def energy(self) -> float:
-        """Stored in the penalty springs at the last step [J]."""
-        return float(self.stats[ENERGY])
-
-    @property
-    def dissipated(self) -> float:
-        """Kinetic energy the fail-safe's and the friction's impulses took so far [J]."""
-        return float(self.stats[TAKEN] + self.stats[FRICTION])
-
-    @property
-    def friction_dissipated(self) -> float:
-        """Kinetic energy the friction's impulses took so far [J]."""
-        return float(self.stats[FRICTION])
-
-    @property
-    def deepest_run(self) -> float:
-        """The deepest penetration of the run so far [m]."""
-        return float(self.stats[DEEPEST_RUN])
-
-    @property
-    def impulses(self) -> int:
-        return int(self.stats[IMPULSES])
-
-    @property
-    def impulses_after_reactions(self) -> int:
-        """Pair impulses of the passes after the hub placed its nodes again (of
-        :attr:`impulses`)."""
-        return int(self.stats[AGAIN])
-
-    @property
-    def unresolved(self) -> int:
-        """Crossings the fail-safe's rounds left (the audit counts them)."""
-        return int(self.stats[LEFT])
-
-
-def cable_radius(case, model) -> float:
-    """The contact radius of a case [m]: contact.cable_radius, else the cable's own
-    sqrt(A / pi) (A from the largest element's E A and the cable's modulus)."""
-    given = case.contact.cable_radius
-    if given is not None:
-        return float(given)
-    area = float(np.max(model.elements.ea)) / case.cable.youngs_modulus
-    return float(np.sqrt(area / np.pi))
 
 
 @njit(cache=True)

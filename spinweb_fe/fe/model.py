@@ -15,13 +15,16 @@ from typing import NamedTuple
 import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
-from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.coil import BUNDLES, Coil, no_coil
 from spinweb_fe.fe.forces import Links, make_links
 from spinweb_fe.fe.axis import Axis
 from spinweb_fe.fe.choice import Choice, Param, registry
 from spinweb_fe.fe.rigid import Body
 from spinweb_fe.fe.rupture import Strength, no_strength
 from spinweb_fe.fe.tidal import Environment, no_environment
+
+
+NO_BUNDLES = BUNDLES["none"].code
 
 
 def _nutates(tables):
@@ -183,8 +186,8 @@ class Model:
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
-        bundles = self.coil if self.coil.bundle_code > 0 else None
-        devices = self.coil if self.coil.payout_code >= 2 else None
+        bundles = self.coil if self.coil.bundle_code != NO_BUNDLES else None
+        devices = self.coil if self.coil.device else None
         return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, bundles,
                       devices, strength, self.env)
 

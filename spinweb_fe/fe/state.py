@@ -165,14 +165,14 @@ def initial_state(model, omega: float, spin: str = "all", tilt_rate: float = 0.0
                vel, 0.0, omega)
     inertia = hub.j_eff + held_inertia(coil.arm_ptr, cs.front, coil.level_ptr,
                                        coil.level_nodes, coil.level_ref, model.nodes.mass)
-    if coil.payout_code >= 2:  # a reel or a brake holds each arm's line at its tip
+    if coil.device:  # a reel or a brake holds each arm's line at its tip
         inertia += start_devices(coil, cs, model.nodes, mass, inv)
         locate_devices(coil, cs, axis_pose(0.0, omega))
     rigid = None
     if model.free_hub:
         rigid = rigid_start(model, cs, omega, tilt_rate)
         place_body(hub, coil, cs, rigid, pos, vel)
-        if coil.payout_code >= 2:
+        if coil.device:
             locate_devices(coil, cs, body_pose(rigid))
         inertia = float(rigid.inertia[2, 2])
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),

@@ -145,7 +145,7 @@ def held_loads(axis, coil, cs, pos, force, tau):
     if axis is not None:
         tau += held_moment(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, pos,
                            force)
-        if coil.payout_code >= 2:
+        if coil.device:
             tau += cs.dev_moment[2]
     return tau
 
@@ -270,11 +270,12 @@ def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
         else:
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
                                       hs.angle[0], k > 0, place)
-        fresh = fresh and n == 0 and contact.spin[1] == 0.0
+        took = contact.hub0.took[0]
+        fresh = fresh and n == 0 and not took
         clean = fresh and left == 0
-        if contact.spin[1] == 0.0:
+        if not took:
             break
-        turned = contact.spin[1] if place else 0.0  # (a free body turned itself, or not)
+        turned = contact.hub0.dw[0] if place else 0.0  # (a free body turned itself, or not)
         hs.angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, turned, dt)
     return fresh, clean
 
@@ -309,8 +310,8 @@ def record_arms(coil, cs, table, t, sa):
         row = table[k]
         row[sa.front], row[sa.next], row[sa.rim], row[sa.held_back] = front_row(coil, cs, k, t)
         row[sa.allowed] = allowed if np.isfinite(allowed) else np.nan
-        row[sa.tension] = cs.dev_tension[k]
-        row[sa.work] = cs.dev_work[k]
+        row[sa.brake_tension] = cs.dev_tension[k]
+        row[sa.brake_work] = cs.dev_work[k]
 
 
 @njit(inline="always")

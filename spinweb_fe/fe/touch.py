@@ -146,10 +146,10 @@ def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, th
         contact.pos0[:] = pos
     if contact is not None:
         if rate is not None:
-            contact.spin[0] = rate[0]
-            contact.spin[2] = theta
+            contact.hub0.rate[0] = rate[0]
+            contact.hub0.angle[0] = theta
         if body is not None:
-            body_snapshot(body, contact.spin[2:16])
+            body_snapshot(body, contact.hub0)
         contact_push(contact, pos, vel, inv_mass, dt)
 
 

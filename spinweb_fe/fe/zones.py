@@ -173,22 +173,22 @@ def axis_map(dtheta):
 
 
 @njit(cache=True)
-def body_map(rs, start):
-    """(4, 3): a free hub's motion since ``start`` (its hub centre C0 [m] and quaternion q0,
-    fe.impulses.body_snapshot's last seven) to its pose now, x -> A x + c with A = R R0^T,
-    c = C - A C0 (None without a body)."""
+def body_map(rs, centre0, q0):
+    """(4, 3): a free hub's motion since its hub centre was ``centre0`` [m] and its attitude
+    ``q0`` (fe.impulses.body_snapshot) to its pose now, x -> A x + c with A = R R0^T, c =
+    C - A C0 (None without a body)."""
     if rs is None:
         return None
     R = rotation(rs.quaternion)
-    R0 = rotation(start[3:7])
+    R0 = rotation(q0)
     out = np.zeros((4, 3))
     for a in range(3):
         for b in range(3):
             out[a, b] = R[a, 0] * R0[b, 0] + R[a, 1] * R0[b, 1] + R[a, 2] * R0[b, 2]
     C = hub_centre(rs, R)
     for a in range(3):
-        out[3, a] = C[a] - (out[a, 0] * start[0] + out[a, 1] * start[1]
-                            + out[a, 2] * start[2])
+        out[3, a] = C[a] - (out[a, 0] * centre0[0] + out[a, 1] * centre0[1]
+                            + out[a, 2] * centre0[2])
     return out
 
 

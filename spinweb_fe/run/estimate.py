@@ -107,12 +107,14 @@ def _check_memory(case, need, elements, force):
                          f"{fmt_bytes(limit / MEMORY_FRACTION)} ({FORCE_HINT})")
 
 
-def measure_rate(model, control, state, dt, threads, rec_every) -> tuple:
-    """(element-updates/s of this model's step loop on this machine, the seconds it took to
-    compile the loop or load it from the cache)."""
+def measure_rate(model, control, state, dt, threads, rec_every, features=None) -> tuple:
+    """(element-updates/s of this model's step loop with the run's ``features`` (None: the
+    model's) on this machine, the seconds it took to compile the loop or load it from the
+    cache)."""
     nsteps = int(max(1, min(CALIBRATION_UPDATES // max(model.n_elems, 1), 256 * rec_every)))
-    compile_s, seconds = time_steps(model, control, state, dt, threads, rec_every, nsteps)
-    return model.n_elems * nsteps / max(seconds, 1e-9), compile_s
+    compile_s, seconds, ran = time_steps(model, control, state, dt, threads, rec_every,
+                                         nsteps, features)
+    return model.n_elems * max(ran, 1) / max(seconds, 1e-9), compile_s
 
 
 def estimate(case, model, dt, step0=0, rate=math.nan, checkpoint=False) -> Estimate:
