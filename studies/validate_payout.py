@@ -1,5 +1,5 @@
 """Validation of the payout devices (issue 24, item 5): the reel (``payout = "rate"``) and
-the brake (``payout = "brake"``) of fe.payout against their analytical twins (the paying
+the brake (``payout = "brake"``) of fe.coil.payout against their analytical twins (the paying
 regime of analytic.payout, the stick and slip of analytic.braking), with the numbers quoted
 by docs/validation.md, section 0.5.
 

@@ -1,5 +1,5 @@
 """The crossing audit of a run (record.crossings, ``[audit] crossings``): the bookkeeping of
-the broad phase around the exact per-step test of fe.crossing, on scripted motions, and in
+the broad phase around the exact per-step test of fe.contact.crossing, on scripted motions, and in
 the step loop, where it must not change the run."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.fe.touch import REBUILD
+from spinweb_fe.fe.contact.touch import REBUILD
 from spinweb_fe.record.crossings import CrossingAudit
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.loop import Schedule, simulate

@@ -1,5 +1,5 @@
 """The analytical model's brake (``[stowage] payout = "brake"``): the consistent model with a
-brake at each arm's departure point D, the analytical twin of fe.payout's brake.
+brake at each arm's departure point D, the analytical twin of fe.coil.payout's brake.
 
 The arm hangs from D, wound over alpha = (H - L) / r0 from the root, with its free length L
 now a state (L, L') instead of a law: the equations of the paying regime

@@ -21,10 +21,10 @@ from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, 
                                     SCHEMA, TOP_KEYS, Field)
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.choice import validate_choice
-from spinweb_fe.fe.coil import BUNDLES, COILS
+from spinweb_fe.fe.coil.levels import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.fe.model import MOTIONS
-from spinweb_fe.fe.payout import PAYOUTS
+from spinweb_fe.fe.coil.payout import PAYOUTS
 from spinweb_fe.fe.tidal import R_EARTH
 
 def _table_class(name, fields):

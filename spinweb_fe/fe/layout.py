@@ -116,7 +116,7 @@ VECTOR = (
         present=lambda model: model.body is None),
 )
 
-#: per arm, the payout devices' columns (a reel or brake at D: fe.payout)
+#: per arm, the payout devices' columns (a reel or brake at D: fe.coil.payout)
 DEVICE = (
     Col("brake_tension", 1, "N", "reel or brake: the line tension at each arm's departure "
                                  "point"),
@@ -145,7 +145,7 @@ STRENGTH = (
 #: the crossing audit's row (audit.crossings, or the candidate list of contact.cables)
 AUDIT = (Col("crossings", 1, "1", "audit.crossings: crossings of two cable elements so far"),)
 
-#: the cable contact's row (contact.cables: fe.cable_contact.ContactKernel.rows)
+#: the cable contact's row (contact.cables: fe.contact.penalty.ContactKernel.rows)
 CONTACT = (TERMS["cable_contact_energy"].col, TERMS["cable_contact_dissipation"].col)
 
 

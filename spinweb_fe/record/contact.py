@@ -1,7 +1,7 @@
 """The cable-cable contact of a run (``[contact] cables = true``) as a feature: its radius
 and stiffness, each listed pair's contact distance, what its fail-safe and friction did so
 far, and the step loop's view of it (hook ``contact``; the kernels are
-:mod:`spinweb_fe.fe.cable_contact`). It works on the crossing audit's candidate list
+:mod:`spinweb_fe.fe.contact.penalty`). It works on the crossing audit's candidate list
 (record.crossings, the feature before it), whose x_n and boxes it shares.
 """
 
@@ -11,9 +11,9 @@ import logging
 
 import numpy as np
 
-from spinweb_fe.fe.cable_contact import (AGAIN, DEEPEST_RUN, ENERGY, FRICTION, IMPULSES, KAPPA,
+from spinweb_fe.fe.contact.penalty import (AGAIN, DEEPEST_RUN, ENERGY, FRICTION, IMPULSES, KAPPA,
                                          LEFT, MARGIN, ROUNDS, TAKEN, ContactKernel)
-from spinweb_fe.fe.impulses import hub_start
+from spinweb_fe.fe.contact.impulses import hub_start
 from spinweb_fe.fe.layout import CONTACT, named
 from spinweb_fe.record.feature import Feature, copied
 
@@ -32,7 +32,7 @@ def cable_radius(case, model) -> float:
 
 class CableContact(Feature):
     """The contact of a run (see the module's text): :meth:`kernel` is a
-    :class:`~spinweb_fe.fe.cable_contact.ContactKernel`, whose ``stats`` say what the last
+    :class:`~spinweb_fe.fe.contact.penalty.ContactKernel`, whose ``stats`` say what the last
     step found and what the fail-safe did so far.
 
     Parameters
@@ -51,7 +51,7 @@ class CableContact(Feature):
 
     name = "contact"
     hook = "contact"
-    table = CONTACT
+    layout = CONTACT
 
     def __init__(self, model, radius: float, kappa: float = KAPPA, friction: float = 0.0,
                  audit=None):
@@ -81,7 +81,7 @@ class CableContact(Feature):
         self.codes, self.reach = codes, reach
 
     def on_list(self, audit, rows: int, codes=None, dist=None):
-        """The step loop's view on the audit's list (``audit``: fe.touch.AuditKernel, whose
+        """The step loop's view on the audit's list (``audit``: fe.contact.touch.AuditKernel, whose
         x_n it shares; ``codes``, ``dist``: its pairs' codes and distances at the build,
         for :meth:`sync` when the list is new), with room for ``rows`` history rows a
         call."""

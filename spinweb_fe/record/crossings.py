@@ -1,8 +1,8 @@
 """The crossing audit (``[audit] crossings = true``): every time two cable elements pass
 through each other during a run, counted and logged (issue #26; docs/results.md).
 
-The step loop tests each step itself (fe.touch: after each step, the candidate element
-pairs with the exact continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings`; the
+The step loop tests each step itself (fe.contact.touch: after each step, the candidate element
+pairs with the exact continuous test of :func:`spinweb_fe.fe.contact.crossing.pair_crossings`; the
 nodes move on straight lines over a step, as the central-difference update moves them), and
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
 phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
@@ -31,10 +31,10 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.crossing import (RIGID, candidate_pairs, pair_distances, sorted_in,
-                                    swept_boxes)
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in, swept_boxes
+from spinweb_fe.fe.contact.crossing import pair_distances
 from spinweb_fe.fe.layout import AUDIT, named
-from spinweb_fe.fe.touch import LOG_PER_STEP, REBUILD, AuditKernel, audit_step
+from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
 from spinweb_fe.record.feature import Feature, copied
 
 log = logging.getLogger(__name__)
@@ -83,14 +83,14 @@ class CrossingAudit(Feature):
         Crossings so far.
     log : dict of lists
         ``time`` [s], ``element_a``, ``element_b``, ``direction`` (+1 / -1) of each crossing
-        (at most :data:`LOG_PER_STEP` per step).
+        (at most fe.contact.touch.LOG_PER_STEP per step).
     rebuilds : int
         Broad-phase builds so far.
     """
 
     name = "crossings"
     hook = "audit"
-    table = AUDIT
+    layout = AUDIT
 
     def __init__(self, model, skin: float | None = None, touch: float = TOUCH, rows: int = 1):
         self.model = model

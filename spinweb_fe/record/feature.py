@@ -14,9 +14,9 @@ at event boundaries only,
 - ``trial(kernel, hooks)``: a copy of that kernel for a step run on a copy of the state (the
   last row at t_end, a measured rate): what such a step changes must not reach the run;
 - ``columns(kernel, rec, nrec)``: its history columns of the rows the call recorded, named by
-  a table of :mod:`spinweb_fe.fe.layout` (:attr:`Feature.table`);
+  a table of :mod:`spinweb_fe.fe.layout` (:attr:`Feature.layout`);
 - ``service(state)``: after every call of the step loop, which stops early (status
-  fe.touch.SERVICE) for a feature that needs Python (a stale candidate list);
+  fe.contact.touch.SERVICE) for a feature that needs Python (a stale candidate list);
 - ``memory()`` / ``restore(memory)``: what it carries from step to step beyond the State,
   for the checkpoint (a restart continues it bit for bit); :attr:`Feature.state_fields`
   names the State arrays that hold the rest (the checkpoint's ``/state``);
@@ -45,7 +45,7 @@ class Feature(Recorder):
     hook : str or None
         The argument of fe.step.advance it fills (:data:`HOOKS`), None if its data rides in
         the Model's kernel view.
-    table : tuple of fe.layout.Col
+    layout : tuple of fe.layout.Col
         Its history columns (empty: none, or columns of the step's own tables).
     state_fields : tuple of str
         The State arrays (fe.state.to_arrays names) that hold its state between steps.
@@ -55,7 +55,7 @@ class Feature(Recorder):
 
     name = ""
     hook = None
-    table = ()
+    layout = ()
     state_fields = ()
     checkpointable = True
 

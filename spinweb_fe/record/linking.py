@@ -39,7 +39,7 @@ A crossing. When a segment AB of P passes through a segment CD of Q, V of the pa
 changes sign, from -s to s, and its solid angle goes from nearly -2 pi s to nearly 2 pi s
 (the parallelogram of differences sweeps over the origin), while every other pair's
 changes continuously: Lk(P, Q) changes by exactly s. With the elements taken as stored,
-s is the sign that :func:`spinweb_fe.fe.crossing.pair_crossings` reports (the same V,
+s is the sign that :func:`spinweb_fe.fe.contact.crossing.pair_crossings` reports (the same V,
 symmetric in the two elements), and Lk changes by s eps_P eps_Q, eps = +1 when the
 loop runs the element in its stored node order, -1 against it. An
 interior element borders two cells, which run it in opposite directions, so one crossing

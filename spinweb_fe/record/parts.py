@@ -18,7 +18,7 @@ class Devices(Feature):
     the step's arm rows)."""
 
     name = "devices"
-    table = DEVICE
+    layout = DEVICE
     state_fields = ("coil/s_dev", "coil/dev_rest", "coil/dev_ref", "coil/dev_x",
                     "coil/dev_work", "coil/dev_tension", "coil/dev_speed", "coil/dev_moment",
                     "coil/dev_friction")

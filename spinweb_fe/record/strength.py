@@ -64,7 +64,7 @@ class StrengthCheck(Feature):
     after a restart)."""
 
     name = "strength"
-    table = STRENGTH
+    layout = STRENGTH
     state_fields = ("strength/broken", "strength/peak", "strength/dissipation",
                     "strength/count")
 

@@ -25,12 +25,14 @@ from spinweb_fe.record.strength import StrengthCheck
 
 
 class FeatureEntry(NamedTuple):
-    """One feature: ``wanted(case, model)`` (case None: a run without a case),
-    ``build(case, model, state, built)`` (``built``: the features built before it, by
-    name), ``check(case, model, state)``: its start-up checks (InputError), or None."""
+    """One feature: its class (record.feature.Feature), ``wanted(case, model)`` (case None:
+    a run without a case), ``build(case, model, state, built)`` (``built``: the features
+    built before it, by name), ``check(case, model, state)``: its start-up checks
+    (InputError), or None."""
 
     name: str
     doc: str
+    cls: type
     wanted: Callable
     build: Callable
     check: Callable | None = None
@@ -95,31 +97,38 @@ def _audited(case) -> bool:
 #: every feature, in the order the loop asks them (a kernel may use those before it)
 FEATURES = (
     FeatureEntry("strength", "strength check and rupture (cable.failure_strain)",
+                 StrengthCheck,
                  lambda case, model: len(model.strength.fail) > 0,
                  lambda case, model, state, built: StrengthCheck(model)),
     FeatureEntry("devices", "reels and brakes at the departure points (stowage.payout)",
+                 Devices,
                  lambda case, model: model.kernel.devices is not None,
                  lambda case, model, state, built: Devices()),
     FeatureEntry("gravity", "the gravity gradient of an orbit "
                             "(environment.gravity_gradient)",
+                 GravityField,
                  lambda case, model: model.env.n > 0.0,
                  lambda case, model, state, built: GravityField(model)),
     FeatureEntry("bundles", "two-stage deployment (stowage.bundle)",
+                 Bundles,
                  lambda case, model: model.kernel.bundles is not None,
                  lambda case, model, state, built: Bundles()),
     FeatureEntry("crossings", "the crossing audit and the contact's candidate list "
                               "(audit.crossings, contact.cables)",
+                 CrossingAudit,
                  lambda case, model: _audited(case),
                  lambda case, model, state, built: CrossingAudit(model, case.audit.skin,
                                                                  case.audit.touch),
                  _check_crossings),
     FeatureEntry("contact", "cable-cable contact (contact.cables)",
+                 CableContact,
                  lambda case, model: case is not None and case.contact.cables,
                  lambda case, model, state, built: CableContact(
                      model, cable_radius(case, model), case.contact.stiffness,
                      case.contact.friction, audit=built["crossings"]),
                  _check_contact),
     FeatureEntry("linking", "the linking numbers of the web's cells (audit.crossings)",
+                 LinkingMonitor,
                  lambda case, model: case is not None and case.audit.crossings,
                  lambda case, model, state, built: LinkingMonitor(model.mesh, state)),
 )

@@ -18,9 +18,9 @@ from spinweb_fe.fe.control import Control
 from spinweb_fe.fe.forces import internal_forces, make_work
 from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS, STRENGTH, VEC_WIDTH, VECTOR, named
 from spinweb_fe.fe.model import Model
-from spinweb_fe.fe.payout import payout_of
+from spinweb_fe.fe.coil.payout import payout_of
 from spinweb_fe.fe.state import State
-from spinweb_fe.fe.touch import SERVICE
+from spinweb_fe.fe.contact.touch import SERVICE
 from spinweb_fe.record.arms import ArmTracker
 from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
 from spinweb_fe.record.feature import HOOKS
@@ -178,7 +178,7 @@ class _Chunks:
 
     def run(self, state, dt, nsteps) -> tuple:
         """``nsteps`` steps of ``state``, the loop stopping where a feature needs Python
-        (fe.touch.SERVICE) and going on after its service: (status, the calls' rows)."""
+        (fe.contact.touch.SERVICE) and going on after its service: (status, the calls' rows)."""
         end = int(state.step[0]) + nsteps
         calls = []
         while True:
@@ -209,6 +209,14 @@ class _Chunks:
             rows.update(f.columns(hooks.get(f.hook), self.rec, nrec))
         self.history.append(rows)
         return rows
+
+    def frame(self, state, t) -> Frame:
+        """The frame of ``state`` at time ``t`` [s] (copies; the tensions at x_n, none in a
+        broken element)."""
+        broken = state.strength.broken.copy() if self.model.strength.rupture else None
+        return Frame(t, state.node_pos.copy(), state.node_vel.copy(),
+                     current_tension(self.model, state.node_pos, state.node_vel, broken,
+                                     self.work), broken)
 
     def joined(self) -> dict:
         names = self.history[0] if self.history else {}
@@ -261,9 +269,9 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     ck_every = max(1, round(schedule.checkpoint_dt / dt)) if schedule.checkpoint_dt > 0 else 0
     features = features_of(model, state) if features is None else list(features)
     tracker = ArmTracker(model.mesh, model.hub.radius)
-    audit = EnergyAudit(energy_limit)
+    balance = EnergyAudit(energy_limit)
     told = [*recorders, *features]  # everything told of the run's events
-    owners = [tracker, audit, *features, *recorders]  # everything with a memory
+    owners = [tracker, balance, *features, *recorders]  # everything with a memory
     for owner in owners:
         if resume and owner.name in resume:
             owner.restore(resume[owner.name])
@@ -297,7 +305,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         for rows in calls:
             for f in features:
                 f.rows(rows)
-            audit.rows(rows)
+            balance.rows(rows)
 
     frames, loop_s, status, reason = 0, 0.0, "completed", None
     budget = FIRST_CHUNK_STEPS
@@ -312,10 +320,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
         if n > step0 and (n == n_total or (ck_every and n % ck_every == 0)):
             _checkpoint(told, state, memory)
         if frame_every and (n % frame_every == 0 or n == n_total):
-            broken = state.strength.broken.copy() if model.strength.rupture else None
-            frame = Frame(n * dt, state.node_pos.copy(), state.node_vel.copy(),
-                          current_tension(model, state.node_pos, state.node_vel, broken,
-                                          chunks.work), broken)
+            frame = chunks.frame(state, n * dt)
             for r in told:
                 r.frame(frame)
             frames += 1

@@ -29,8 +29,10 @@ import threading
 import numpy as np
 
 from spinweb_fe.fe import step
-from spinweb_fe.fe.axis import AxisKick, NodeMotion, axis_devices, axis_nodes
-from spinweb_fe.fe.coil import open_bundles, release_fronts
+from spinweb_fe.fe.coil.devices import axis_devices
+from spinweb_fe.fe.hub.axis import AxisKick, NodeMotion, axis_nodes
+from spinweb_fe.fe.coil.bundles import open_bundles
+from spinweb_fe.fe.coil.levels import release_fronts
 
 ENV = "SPINWEB_COMPILE_HELPER"
 PR_SET_PDEATHSIG = 1

@@ -1,5 +1,5 @@
 """The contact's impulses at a step's end besides the fail-safe's crossings
-(fe.cable_contact): Coulomb friction between touching cables, and the bookkeeping of every
+(fe.contact.penalty): Coulomb friction between touching cables, and the bookkeeping of every
 impulse: its work paired as the leapfrog pairs a force, and the angular impulse about the
 axis that a fixed hub takes as their reaction, or the impulse and moment a free hub takes
 (docs/solver.md, cable-cable contact)."""
@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.rigid import (cross, dot, hub_centre, inv_inertia, mul, mul_t, normalise,
+from spinweb_fe.fe.hub.rigid import (cross, dot, hub_centre, inv_inertia, mul, mul_t, normalise,
                                 rotation, spatial_inertia, turn)
 
 
@@ -130,7 +130,7 @@ def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow, place=True)
     """A fixed axis (effective inertia ``inertia`` [kg m^2]) takes the angular impulse
     about z of the impulses that changed the free nodes' v_{n+1/2} from ``before`` to
     ``after`` (``pos``: their x_{n+1}, :func:`node_impulse`), together with the free nodes
-    that move with it this step (``follow``, fe.zones: stuck to the hub, they turn with it,
+    that move with it this step (``follow``, fe.contact.zones: stuck to the hub, they turn with it,
     v += dw z x x_{n+1}, x_{n+1} by dt times that): the rate's change dw [rad/s] keeps the
     axial angular momentum of hub and nodes. ``place`` False: the hub will not turn by dt
     dw in this step (fe.step.settle's last pass), so the stuck nodes take only the velocity
@@ -199,13 +199,13 @@ def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw, place):
 
 @njit(cache=True)
 def body_reaction(rs, pos, before, after, inv_mass, v0, w0, dt, follow=None, place=True):
-    """A free hub (fe.rigid.RigidState ``rs``, after its drift) takes the reaction of the
+    """A free hub (fe.hub.rigid.RigidState ``rs``, after its drift) takes the reaction of the
     impulses that changed the free nodes' v_{n+1/2} from ``before`` to ``after`` (``pos``:
     their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times
     that (as a node's impulse moves its x_{n+1}), Pi_{n+1/2} such that the step's angular
     momentum M X x V + Pi + sum m x_n x v_{n+1/2} is unchanged, and its attitude turned by
     dt times the change of its angular velocity (as a fixed axis turns by dt dw). The free
-    nodes marked in ``follow`` (stuck to the hub this step, fe.zones) take the body's
+    nodes marked in ``follow`` (stuck to the hub this step, fe.contact.zones) take the body's
     change with it, v += dV + dw x (x_{n+1} - X) and x_{n+1} by dt times that, and the
     change keeps the momenta of body and nodes together (:func:`_stuck`). ``place`` False
     (fe.step.settle's last pass): the reaction changes the velocities only, X_{n+1}, the
@@ -254,7 +254,7 @@ def body_reaction(rs, pos, before, after, inv_mass, v0, w0, dt, follow=None, pla
 
 class HubStart(NamedTuple):
     """The hub at a step's start, and the reaction the contact's fail-safe gave it at the
-    step's end (fe.cable_contact.contact_resolve; each field an array the kernels write).
+    step's end (fe.contact.penalty.contact_resolve; each field an array the kernels write).
 
     rate, angle (1,) [rad/s], [rad]: a fixed axis's omega_{n-1/2} and theta_n; dw (1,)
     [rad/s]: the change of a fixed axis's rate the reaction made; took (1,) bool: the hub

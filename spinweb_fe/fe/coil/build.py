@@ -1,13 +1,13 @@
 """The Coil of a coiled mesh: its levels (per arm, the coil nodes of one arm coordinate,
-outer first), their free elements and the laws that release them (fe.coil's kernels read
+outer first), their free elements and the laws that release them (fe.coil.levels's kernels read
 it)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from spinweb_fe.fe.coil import BUNDLES, Coil, no_coil
-from spinweb_fe.fe.payout import BY_CODE as PAYOUTS_BY_CODE
+from spinweb_fe.fe.coil.levels import BUNDLES, Coil, no_coil
+from spinweb_fe.fe.coil.payout import BY_CODE as PAYOUTS_BY_CODE
 
 
 def _levels(mesh, coil_nodes):
@@ -56,7 +56,7 @@ def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundl
     coil_code : int
         See :data:`COILS`.
     payout : (code, None or ((P,) times [s], (P,) lengths [m]))
-        The payout device (fe.payout.PAYOUTS) and its law's paid-out length table.
+        The payout device (fe.coil.payout.PAYOUTS) and its law's paid-out length table.
     bundle : (code, value)
         See :data:`BUNDLES`.
     hold : None or (n_arms,) float64 [s]

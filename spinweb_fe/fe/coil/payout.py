@@ -1,7 +1,7 @@
 """Payout devices: how a held coil lets its arm's line out (``[stowage] payout``), one
 registry entry each, and the kernels of the two that act on the line (docs/solver.md):
 
-- ``free``: the front level goes when the free part pulls it off the hub (fe.coil);
+- ``free``: the front level goes when the free part pulls it off the hub (fe.coil.levels);
 - ``gate``: as free, but never ahead of a law L(t): a latch that frees stowed levels no
   faster than the law (a burn-wire release of folded segments, say); it does no work;
 - ``rate``: a reel at each arm's departure point D that holds the line and lets it out at
@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.choice import Choice, Param, registry
-from spinweb_fe.fe.coil import level_masses
+from spinweb_fe.fe.coil.levels import level_masses
 from spinweb_fe.fe.law import length_strain, rate
 
 #: the last time of a constant law's table [s]: value v from 0 up to here
@@ -96,7 +96,7 @@ _LENGTH = (Param("payout_rate", "m/s", "pos", "payout = gate or rate: paid-out l
 @dataclass(frozen=True)
 class Payout(Choice):
     """A payout law: ``device``, a reel or brake at each arm's departure point D (it holds
-    the line there, its tension turns the hub, its work is an energy term: fe.payout's
+    the line there, its tension turns the hub, its work is an energy term: fe.coil.payout's
     phases, the ``devices`` feature); ``length_law``, a law of the paid-out length limits
     the payout (``payout_allowed``). The kernels read them as ``Coil.device`` and
     ``Coil.length_law``."""
@@ -139,7 +139,7 @@ BY_CODE = {c.code: c for c in PAYOUTS.values()}
 
 
 def payout_of(coil) -> Payout:
-    """The payout law of a coil (fe.coil.Coil), its registry entry."""
+    """The payout law of a coil (fe.coil.levels.Coil), its registry entry."""
     return BY_CODE[int(coil.payout_code)]
 
 
@@ -233,7 +233,7 @@ def device_point(coil, k, lev, s):
 
 
 class Pose(NamedTuple):
-    """The hub's pose and motion as the devices see it (fe.axis.axis_pose, fe.body.body_pose):
+    """The hub's pose and motion as the devices see it (fe.hub.axis.axis_pose, fe.hub.body.body_pose):
     ``rot`` (3, 3) the attitude R (hub frame to world), ``centre`` (3,) [m] the hub centre o,
     ``com`` (3,) [m] the body's centre of mass X, ``velocity`` (3,) [m/s] its V, ``omega``
     (3,) [rad/s] its angular velocity (a fixed axis: o = X = V = 0, omega = w e_z)."""

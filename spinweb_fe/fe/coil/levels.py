@@ -18,7 +18,7 @@ bundles open (each node keeps the bundle's velocity) when the arm has paid out a
 fraction of its length, or at a given time.
 
 Registries of the choices: :data:`COILS`, :data:`BUNDLES` (and the payout devices,
-:data:`spinweb_fe.fe.payout.PAYOUTS`).
+:data:`spinweb_fe.fe.coil.payout.PAYOUTS`).
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ class Coil(NamedTuple):
     coil_code : int
         The coil (:data:`COILS`): 1 held, 0 loose.
     payout_code : int
-        The payout (fe.payout.PAYOUTS): 0 free, 1 gate, 2 reel ('rate'), 3 brake.
+        The payout (fe.coil.payout.PAYOUTS): 0 free, 1 gate, 2 reel ('rate'), 3 brake.
     device : bool
         The payout is a device at each arm's departure point (a reel or brake: the
         registry entry's ``device``).
@@ -153,7 +153,7 @@ class Coil(NamedTuple):
 
 class CoilState(NamedTuple):
     """Per arm: ``front`` (n_arms,) int64, the levels released; ``bundled`` (n_arms,) bool;
-    and a payout device's (fe.payout; zero without a reel or brake), each (n_arms,):
+    and a payout device's (fe.coil.payout; zero without a reel or brake), each (n_arms,):
 
     ``s_dev`` [m], the arm coordinate of the line at the device D (free length arm_end -
     s_dev); ``dev_rest`` [kg], the mass held at D (the front level's free elements' outer
@@ -295,45 +295,6 @@ def held_moment(arm_ptr, front, level_ptr, level_nodes, pos, force):
 
 
 @njit(cache=True)
-def gather_bundles(coil, cs, force):
-    """The force (n, 3) on each released level of a bundled arm, summed on its spine node
-    (the other nodes' rows are cleared). ``coil`` None: a scene without bundles (numba
-    compiles nothing of it)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
-            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
-            m = coil.level_nodes[a]
-            for p in range(a + 1, b):
-                i = coil.level_nodes[p]
-                for d in range(3):
-                    force[m, d] += force[i, d]
-                    force[i, d] = 0.0
-
-
-@njit(cache=True)
-def scatter_bundles(coil, cs, pos, vel):
-    """The other nodes of each bundle take its spine node's position and velocity (``coil``
-    None: no bundles)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
-            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
-            m = coil.level_nodes[a]
-            for p in range(a + 1, b):
-                i = coil.level_nodes[p]
-                for d in range(3):
-                    pos[i, d] = pos[m, d]
-                    vel[i, d] = vel[m, d]
-
-
-@njit(cache=True)
 def law_value(tt, vv, t):
     """The value at time t of a law given at times ``tt`` (increasing) by ``vv``: linear
     between the points, constant outside them."""
@@ -396,7 +357,7 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
     hub and whose paid-out length would then not exceed the payout law's at time t (broken
     elements and the hub's ``frame``: see :func:`pulls`); an arm held whole until
     ``arm_hold`` releases its tip level then. Returns the hub's effective inertia without the
-    released nodes [kg m^2]. (A reel or a brake releases its levels itself: fe.payout.)"""
+    released nodes [kg m^2]. (A reel or a brake releases its levels itself: fe.coil.payout.)"""
     if coil.device:
         return inertia
     allowed = payout_allowed(coil, t)
@@ -419,28 +380,6 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
                      nodes.inv_mass, mass, inv_mass, lev, lev + 1, cs.bundled[k])
         cs.front[k] += 1
     return inertia
-
-
-@njit(cache=True)
-def open_bundles(coil, cs, nodes, mass, inv_mass, t):
-    """Open the bundles of the arms that reached the release (length fraction or time):
-    every node keeps the bundle's position and velocity and gets its own mass back
-    (``coil`` None: no bundles)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        if coil.bundle_timed:
-            due = t >= coil.bundle_value
-        else:
-            span = coil.arm_end[k] - coil.arm_base[k]
-            due = free_length(coil, cs, k) >= coil.bundle_value * span - 1e-12 * span
-        if due:
-            cs.bundled[k] = False
-            level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass,
-                         nodes.inv_mass, mass, inv_mass, coil.arm_ptr[k],
-                         coil.arm_ptr[k] + cs.front[k], cs.bundled[k])
 
 
 @njit(cache=True, no_cpython_wrapper=True)
