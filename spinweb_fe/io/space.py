@@ -15,6 +15,7 @@ import shutil
 from pathlib import Path
 
 from spinweb_fe.errors import RunError
+from spinweb_fe.io.safe import write_new
 
 MARGIN = 256 * 1024        # [bytes] kept free beyond each write (metadata, the final close)
 RESERVE = 512 * 1024       # [bytes] reserve file, freed when a write fails anyway
@@ -67,12 +68,11 @@ class DiskGuard:
         self.path = self.folder / RESERVE_NAME
         self.size = 0
         if reserve > 0 and free_bytes(self.folder) > reserve + MARGIN:
-            try:
-                with open(self.path, "wb") as f:
-                    f.write(b"\0" * reserve)  # real blocks, not a sparse file
+            try:  # a new file, never through a link planted under its name
+                write_new(self.path, b"\0" * reserve)  # real blocks, not a sparse file
                 self.size = reserve
             except OSError:
-                self.path.unlink(missing_ok=True)
+                pass
 
     def need(self, nbytes, what="the next output", time=None):
         """Raise :class:`DiskFull` unless ``nbytes`` (plus MARGIN) fit on the disk."""
