@@ -32,7 +32,7 @@ from spinweb_fe.io.checkpoint import CHECKPOINT_NAME
 from spinweb_fe.io.h5 import write_root_attrs
 from spinweb_fe.io.mesh import write_mesh_group
 from spinweb_fe.io.safe import NotOurs, check_regular, make_room, real_dir, same_file
-from spinweb_fe.io.space import DiskFull, no_space
+from spinweb_fe.io.space import DiskFull, no_space, too_large
 from spinweb_fe.io.vtk import append_pvd, write_pvd, write_vtu
 from spinweb_fe.record.history import COLUMNS
 from spinweb_fe.record.recorders import Recorder
@@ -58,9 +58,12 @@ def _growth(ds, arr) -> int:
 
 
 def _cause(exc) -> str:
-    """One line for a failed write: 'no space left on device' or 'I/O error: ...'."""
+    """One line for a failed write: 'no space left on device', 'file too large' or 'I/O
+    error: ...'."""
     if no_space(exc):
         return "no space left on device"
+    if too_large(exc):
+        return "file too large (the file-size limit, ulimit -f)"
     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     return f"I/O error: {text}"
 
@@ -426,7 +429,9 @@ class ResultWriter(Recorder):
             self._pool.shutdown()
             self._pool = None
         if self.h5:
-            self.h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
-            self._ds = {}
-            self.h5.close()
-            self.h5 = None
+            h5, self.h5, self._ds = self.h5, None, {}
+            try:
+                h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
+                h5.close()
+            except (OSError, RuntimeError) as exc:  # HDF5's last flush: one line, not its own
+                raise RunError(f"cannot write to {self.dir}: {_cause(exc)}") from None
