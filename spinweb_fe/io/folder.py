@@ -30,6 +30,7 @@ from spinweb_fe.io.safe import describe as describe_entry
 from spinweb_fe.io.safe import kind, remove, write_new
 
 LOCK_NAME = "run.lock"
+SWEEP_LOCK = "sweep.lock"  # a sweep's or a design's folder: one at a time
 ASIDE_NAME = ".previous"
 MANIFEST = "MANIFEST"
 #: what a run writes into its folder (moved aside as a whole, put back as a whole)

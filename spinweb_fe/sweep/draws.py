@@ -31,6 +31,7 @@ DISTRIBUTIONS = {"normal": (("mean", "std"), ("low", "high")),
 #: the confidence of the pass rate's interval
 CONFIDENCE = 0.95
 MAX_MEMBERS = 100_000
+MAX_SEED = 2 ** 63  # summary.h5 stores the seed as a 64-bit integer
 
 
 @dataclass(frozen=True)
@@ -101,8 +102,11 @@ def parse(src, doc: dict) -> tuple:
         raise InputError(src, "members", f"must be an integer from 1 to {MAX_MEMBERS}, "
                          f"got {members!r}")
     seed = doc.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(src, "seed", f"must be an integer >= 0, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < MAX_SEED:
+        shown = f"an integer of {len(str(seed))} digits" if isinstance(seed, int) and \
+            abs(seed) >= 10 ** 24 else repr(seed)
+        raise InputError(src, "seed", f"must be an integer from 0 to 2^63 - 1 (it is "
+                         f"stored as a 64-bit integer), got {shown}")
     if not table:
         raise InputError(src, "random", "missing: the keys the members draw (e.g. "
                          "\"tip_mass.mass\" = {dist = \"normal\", mean = 10.0, std = 0.5})")
