@@ -34,6 +34,7 @@ from spinweb_fe.io.mesh import write_mesh_group
 from spinweb_fe.io.safe import NotOurs, check_regular, make_room, real_dir, same_file
 from spinweb_fe.io.space import DiskFull, no_space, too_large
 from spinweb_fe.io.vtk import append_pvd, write_pvd, write_vtu
+from spinweb_fe.record.energy import energy_floor, momentum_floor
 from spinweb_fe.record.history import COLUMNS
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.record.strength import strength_cells
@@ -137,8 +138,10 @@ class ResultWriter(Recorder):
         # made new (O_EXCL), never through a link planted under its name
         self.h5 = h5py.File(make_room(self.dir / "results.h5"), "x")
         self.run_id = uuid.uuid4().hex
+        floor = energy_floor(model)
         write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
-                         dt_critical=model.dt_critical, status="running", run_id=self.run_id)
+                         dt_critical=model.dt_critical, status="running", run_id=self.run_id,
+                         energy_floor=floor, momentum_floor=momentum_floor(model, floor))
         write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.nodes.mass)
         self.hist = self.h5.create_group("history")
         if write_frames:

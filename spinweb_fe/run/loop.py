@@ -22,7 +22,7 @@ from spinweb_fe.fe.payout import PAYOUTS
 from spinweb_fe.fe.state import State
 from spinweb_fe.fe.touch import SERVICE
 from spinweb_fe.record.arms import ArmTracker
-from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
+from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit, energy_floor
 from spinweb_fe.record.history import hub_plane, table_rows
 from spinweb_fe.record.recorders import Frame, RunInfo
 from spinweb_fe.record.strength import StrengthMonitor, strength_columns
@@ -242,7 +242,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     frame_every = max(1, round(schedule.frame_dt / dt)) if schedule.frame_dt > 0 else 0
     ck_every = max(1, round(schedule.checkpoint_dt / dt)) if schedule.checkpoint_dt > 0 else 0
     tracker = ArmTracker(model.mesh, model.hub.radius)
-    audit = EnergyAudit(energy_limit)
+    audit = EnergyAudit(energy_limit, energy_floor(model))
     monitor = StrengthMonitor()
     owners = [tracker, audit, monitor, *recorders]  # everything with a memory
     if crossings is not None:
