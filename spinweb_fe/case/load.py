@@ -19,7 +19,8 @@ from meshgen.registry import COILED_FOLDS, TETHER_FOLDS, WEB_FOLDS, area_from_ar
 from spinweb_fe.case.perturb import SHAPES
 from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, REQUIRED,
                                     SCHEMA, TOP_KEYS, Field)
-from spinweb_fe.case.text import MAX_DEPTH, depth, dumps_toml, parse_toml, read_toml, show
+from spinweb_fe.case.text import (MAX_DEPTH, check_text, depth, dumps_toml, parse_toml,
+                                  read_toml, show)
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.choice import validate_choice
 from spinweb_fe.fe.coil import BUNDLES, COILS
@@ -128,7 +129,7 @@ def _coerce(src, dotted, field: Field, value):
         if not isinstance(value, str):
             raise InputError(src, dotted, f"expected a string, got {show(value)}")
         if not isinstance(field.check, tuple):  # free text (a choice names its values)
-            _check_text(src, dotted, value)
+            check_text(src, dotted, value, MAX_TEXT)
     elif kind == "bool":
         if not isinstance(value, bool):
             raise InputError(src, dotted, f"expected true or false, got {show(value)}")
@@ -149,17 +150,6 @@ def _coerce(src, dotted, field: Field, value):
     elif chk == "nonzero" and value == 0:
         raise InputError(src, dotted, "must not be zero")
     return value
-
-
-def _check_text(src, dotted, value: str):
-    """A string of a case: printable (control characters would break the one-line
-    messages, the stored case and HDF5's strings) and at most MAX_TEXT characters."""
-    bad = next((ch for ch in value if ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0), None)
-    if bad is not None:
-        raise InputError(src, dotted, f"contains the control character {bad!r}: give "
-                         "printable text")
-    if len(value) > MAX_TEXT:
-        raise InputError(src, dotted, f"is {len(value)} characters long (at most {MAX_TEXT})")
 
 
 def _vector(src, dotted, field, value):

@@ -12,6 +12,7 @@ deeper than :data:`MAX_DEPTH` levels (no case, sweep or design file has more tha
 from __future__ import annotations
 
 import math
+import stat
 import tomllib
 from pathlib import Path
 
@@ -27,6 +28,31 @@ def show(value, width: int = SHOW) -> str:
         return f"an integer of {len(str(abs(value)))} digits"
     text = repr(value)
     return text if len(text) <= width else text[:width - 4] + " ..."
+
+
+def check_text(source, key, value: str, limit: int = 4096) -> str:
+    """``value`` if it is printable text of at most ``limit`` characters, else InputError
+    (control characters would break the one-line messages, the stored case, HDF5's strings
+    and file names)."""
+    bad = next((ch for ch in value if ord(ch) < 0x20 or 0x7F <= ord(ch) < 0xA0), None)
+    if bad is not None:
+        raise InputError(source, key, f"contains the control character {bad!r}: give "
+                         "printable text")
+    if len(value) > limit:
+        raise InputError(source, key, f"is {len(value)} characters long (at most {limit})")
+    return value
+
+
+def base_path(source, doc: dict, what: str) -> Path:
+    """The base case of a sweep or design file (``base``, relative to ``source``)."""
+    value = doc.get("base")
+    if not isinstance(value, str):
+        raise InputError(source, "base", f"missing: the base case file, relative to the "
+                         f"{what} file")
+    try:
+        return (Path(source).parent / check_text(source, "base", value)).resolve()
+    except (OSError, RuntimeError) as exc:  # a loop of links
+        raise InputError(source, "base", f"cannot be resolved ({exc})") from None
 
 
 def depth(doc) -> int:
@@ -67,10 +93,17 @@ def read_toml(path, what: str = "file", missing: str | None = None) -> dict:
     reason ``missing``, default 'no such WHAT'), empty, unreadable or non-UTF-8 file is an
     InputError."""
     path = Path(path)
-    if path.is_dir():
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(path, "", missing or f"no such {what}") from None
+    except (OSError, ValueError) as exc:  # a name too long or with a NUL, a loop of links
+        raise InputError(path, "", f"cannot be read ({getattr(exc, 'strerror', None) or exc})") \
+            from None
+    if stat.S_ISDIR(mode):
         raise InputError(path, "", f"is a folder, not a {what}")
-    if not path.is_file():
-        raise InputError(path, "", missing or f"no such {what}")
+    if not stat.S_ISREG(mode):
+        raise InputError(path, "", f"is not a regular file (a FIFO or a device), not a {what}")
     try:
         data = path.read_bytes()
     except OSError as exc:

@@ -59,8 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _one_line(text) -> str:
-    """The message on one line: control characters (newlines from a key or value) escaped."""
-    return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], str(text))
+    """The message on one line: control characters (newlines from a key or value, and the
+    line breaks of str.splitlines: NEL, LS, PS) escaped."""
+    return re.sub(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]", lambda m: repr(m.group())[1:-1],
+                  str(text))
 
 
 def _terminated(signum, frame):  # SIGTERM before a run installs its own handler

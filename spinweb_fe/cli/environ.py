@@ -102,9 +102,18 @@ class OneLine(logging.Filter):
 _shown = set()
 
 
+#: numpy's floating-point warnings: the checks that follow name the key (debug only)
+FLOATING = re.compile(r"(divide by zero|overflow|underflow|invalid value) encountered")
+
+
 def show_warning(message, category, filename, lineno, file=None, line=None):
-    """``warnings.showwarning`` on one line (the first of the message), each text once."""
+    """``warnings.showwarning`` on one line (the first of the message), each text once;
+    numpy's floating-point warnings (inf or nan on the way to a check that refuses the
+    value, naming its key) at debug level."""
     first = (str(message).strip().splitlines() or [category.__name__])[0]
+    if issubclass(category, RuntimeWarning) and FLOATING.search(first):
+        log.debug("warning: %s (%s:%s)", first, filename, lineno)
+        return
     if first in _shown:
         return
     _shown.add(first)

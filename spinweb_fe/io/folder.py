@@ -91,6 +91,9 @@ def aside_state(folder) -> tuple:
         names = set(os.listdir(aside)) - {MANIFEST, MANIFEST + ".tmp"}
     except OSError as exc:
         return "foreign", f"cannot be read ({exc.strerror})"
+    for name in (MANIFEST, MANIFEST + ".tmp"):
+        if kind(aside / name) not in ("file", "link", "missing"):
+            return "foreign", f"its {name} is {describe_entry(aside / name)}"
     if not names:
         return "empty", ""
     moved = read_manifest(aside)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spinweb_fe.case.text import show
 from spinweb_fe.errors import InputError
 
 #: distribution name -> (required parameters, optional parameters)
@@ -62,7 +63,12 @@ class Draw:
 
 
 def _number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an integer beyond the floats
+        return False
 
 
 def flatten_random(table: dict, prefix: str = "") -> dict:
@@ -136,7 +142,8 @@ def parse(src, doc: dict) -> tuple:
         else:
             for k, v in params.items():
                 if not _number(v):
-                    raise InputError(src, f"{where}.{k}", f"must be a finite number, got {v!r}")
+                    raise InputError(src, f"{where}.{k}", f"must be a finite number, got "
+                                     f"{show(v)}")
             if dist == "normal" and params["std"] < 0:
                 raise InputError(src, f"{where}.std", f"must be >= 0, got {params['std']}")
             low, high = params.get("low", -math.inf), params.get("high", math.inf)

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe.case.load import validate
-from spinweb_fe.case.text import read_toml
+from spinweb_fe.case.text import base_path, read_toml
 from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.run.estimate import case_elements
@@ -183,9 +183,7 @@ def load_sweep(path, mode=None, sets=(), only=(), force=False) -> Sweep:
             near = difflib.get_close_matches(key, TOP_KEYS, n=1, cutoff=0.5)
             hint = f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(TOP_KEYS)})"
             raise InputError(src, key, "unknown key" + hint)
-    if not isinstance(doc.get("base"), str):
-        raise InputError(src, "base", "missing: the base case file, relative to the sweep file")
-    base = (src.parent / doc["base"]).resolve()
+    base = base_path(src, doc, "sweep")
     mode = mode or doc.get("mode", "fe")
     if mode not in MODES:
         raise InputError(src, "mode", f"unknown mode '{mode}' (valid: {', '.join(MODES)})")
