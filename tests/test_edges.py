@@ -33,7 +33,8 @@ EDGES = {  # name: (replace, by, key, words)
     "nul_title": ('title = "demo', 'title = "de\\u0000mo', "title", "'\\x00'"),
     "newline_title": ('title = "demo', 'title = "de\\nmo', "title", "'\\n'"),
     "escape_title": ('title = "demo', 'title = "\\u001b[31mred', "title", "'\\x1b'"),
-    "long_title": ('title = "demo', 'title = "' + "x" * 5000, "title", "5047 characters long (at most 4096)"),
+    "long_title": ('title = "demo', 'title = "' + "x" * 5000, "title",
+                   "5047 characters long (at most 4096)"),
 }
 
 

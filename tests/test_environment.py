@@ -130,3 +130,23 @@ def test_an_unexpected_error_is_one_line(monkeypatch, capsys):
                            "division by zero"), line
     assert main(["-v", "check", FAST[0]]) == 1
     assert "Traceback" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_during_start_up_is_one_line(signame):
+    """A signal while the command line is still being imported: a KeyboardInterrupt
+    traceback (SIGINT) or a silent exit 143 (SIGTERM) on main. The signal is sent by an
+    import hook when spinweb_fe.cli starts to load, so the moment is exact."""
+    code = ("import importlib.abc, os, runpy, signal, sys\n"
+            "class Hook(importlib.abc.MetaPathFinder):\n"
+            "    def find_spec(self, name, path, target=None):\n"
+            "        if name == 'spinweb_fe.cli':\n"
+            f"            os.kill(os.getpid(), signal.{signame})\n"
+            "        return None\n"
+            "sys.meta_path.insert(0, Hook())\n"
+            f"sys.argv = ['spinweb', 'check', {FAST[0]!r}]\n"
+            "runpy.run_module('spinweb_fe', run_name='__main__')\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 1
+    assert one_line(p.stderr) == f"spinweb: interrupted by {signame}"

@@ -17,8 +17,8 @@ and the history row of step n itself are not (the continued run writes them). It
 
 The control laws keep no memory of their own, so nothing else is needed. The file is written
 to a temporary name (made new, never through a link) and renamed (``os.replace``), so a run
-killed while writing leaves the previous checkpoint intact. Version 3 added the free hub's rigid body (``/state/rigid/...``)
-and the gravity-gradient work (``/state/totals/gravity_work``); version 4 holds the energy
+killed while writing leaves the previous checkpoint intact. Version 3 added the free hub's
+rigid body (``/state/rigid/...``) and the gravity-gradient work (``/state/totals/gravity_work``); version 4 holds the energy
 terms as one array in the order of fe.layout.STEP_TERMS (``/state/totals``) and no rigid
 body for a fixed axis, and reads version 3 files too; version 1 files (before the held coil)
 and version 2 files (before the free hub) are refused with a one-line reason.

@@ -21,6 +21,7 @@ import fcntl
 import json
 import os
 import socket
+import stat
 import sys
 import time
 from pathlib import Path
@@ -134,7 +135,7 @@ def holder(folder, lock_name=LOCK_NAME) -> dict | None:
     except OSError:
         return None
     try:
-        if kind(path) != "file":
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO, a socket: no run's lock
             return None
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
@@ -196,7 +197,7 @@ class FolderLock:
                 else exc.strerror
             raise InputError(self.path, "", f"cannot be used as the folder's lock: it is "
                              f"{reason}; remove it (nothing was changed)") from None
-        if kind(self.path) != "file":  # a FIFO or a socket opens: refuse it all the same
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO opens: refuse it all the same
             os.close(fd)
             raise InputError(self.path, "", f"cannot be used as the folder's lock: it is "
                              f"{describe_entry(self.path)}; remove it (nothing was changed)")

@@ -2,8 +2,8 @@
 
 A VTU file is written atomically (temporary file in the same folder, then rename) with the
 permissions the umask gives a new file; temporary files are made new (``O_EXCL``), never
-through a link, and the collection is grown only if it is a regular file. A PVD collection is written whole once and then
-grown in place, one ``DataSet`` line per frame (:func:`append_pvd`): the cost of a frame
+through a link, and the collection is grown only if it is a regular file. A PVD collection
+is written whole once and then grown in place, one ``DataSet`` line per frame (:func:`append_pvd`): the cost of a frame
 does not grow with the number of frames, and the file is a valid collection after every
 call (a failed append puts the previous closing lines back).
 """
