@@ -248,7 +248,8 @@ def _judge(writer, case, model, state, status):
             h, verdict.reach_of(model.mesh), model.mesh.hub_radius, status=status,
             slack_share=verdict.slack_share(state.node_pos, model.elements.nodes,
                                             model.elements.rest_len, broken),
-            out_of_plane="out_of_plane_max" in h, **verdict.case_terms(case.to_dict()))
+            out_of_plane="out_of_plane_max" in h, **verdict.case_terms(case.to_dict()),
+            **verdict.floors_of(writer.h5.attrs))
         verdict.write_group(writer.h5, crits)
         writer.h5.flush()
         lines = verdict.report(crits)

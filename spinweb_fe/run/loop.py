@@ -22,7 +22,7 @@ from spinweb_fe.fe.coil.payout import payout_of
 from spinweb_fe.fe.state import State
 from spinweb_fe.fe.contact.touch import SERVICE
 from spinweb_fe.record.arms import ArmTracker
-from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit
+from spinweb_fe.record.energy import ENERGY_LIMIT, EnergyAudit, energy_floor
 from spinweb_fe.record.feature import HOOKS
 from spinweb_fe.record.history import hub_plane, table_rows
 from spinweb_fe.record.recorders import Frame, RunInfo
@@ -269,7 +269,7 @@ def simulate(model: Model, control: Control, state: State, dt: float, schedule: 
     ck_every = max(1, round(schedule.checkpoint_dt / dt)) if schedule.checkpoint_dt > 0 else 0
     features = features_of(model, state) if features is None else list(features)
     tracker = ArmTracker(model.mesh, model.hub.radius)
-    balance = EnergyAudit(energy_limit)
+    balance = EnergyAudit(energy_limit, energy_floor(model))
     told = [*recorders, *features]  # everything told of the run's events
     owners = [tracker, balance, *features, *recorders]  # everything with a memory
     for owner in owners:

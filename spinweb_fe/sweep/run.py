@@ -42,10 +42,13 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe.case.load import validate
+from spinweb_fe.case.text import base_path, read_toml
 from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.run.estimate import case_elements
 from spinweb_fe.sweep.draws import member_values
 from spinweb_fe.sweep.draws import parse as parse_draws
+from spinweb_fe.sweep.limits import check_runs, count_runs
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +85,7 @@ class Run:
     raw: dict
     label: str = ""  # the name of its [[runs]] entry, if given
     member: int = -1  # its Monte-Carlo member (-1: the sweep has none)
+    elements: float = 0.0  # about its cable elements (FE; run.estimate.case_elements)
 
 
 @dataclass(frozen=True)
@@ -139,12 +143,7 @@ def _slug(values: dict) -> str:
 
 
 def _read_toml(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise InputError(path, "", f"no such {what}")
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    return read_toml(path, what)
 
 
 def _scalar(src, key, v):
@@ -153,7 +152,7 @@ def _scalar(src, key, v):
     return v
 
 
-def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
+def load_sweep(path, mode=None, sets=(), only=(), force=False) -> Sweep:
     """Read a sweep file, build and validate every run.
 
     Parameters
@@ -165,6 +164,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
         ``key=value`` overrides (TOML values) added to ``[set]``.
     only : iterable of str
         Keep only these runs (their names or indices; each run keeps its own draws).
+    force : bool
+        Accept more runs than the machine can keep track of (sweep.limits.check_runs).
 
     Raises
     ------
@@ -182,9 +183,7 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
             near = difflib.get_close_matches(key, TOP_KEYS, n=1, cutoff=0.5)
             hint = f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(TOP_KEYS)})"
             raise InputError(src, key, "unknown key" + hint)
-    if not isinstance(doc.get("base"), str):
-        raise InputError(src, "base", "missing: the base case file, relative to the sweep file")
-    base = (src.parent / doc["base"]).resolve()
+    base = base_path(src, doc, "sweep")
     mode = mode or doc.get("mode", "fe")
     if mode not in MODES:
         raise InputError(src, "mode", f"unknown mode '{mode}' (valid: {', '.join(MODES)})")
@@ -225,6 +224,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
             raise InputError(src, f"random.{d.key}", "also set in [set], [grid] or [[runs]]: "
                              "give it in one place")
     keys = tuple(list(grid) + run_keys + [d.key for d in draws])
+    check_runs(count_runs(len(entries), [len(v) for v in grid.values()], members), src,
+               force)  # before anything is built
     base_raw = _read_toml(base, "base case")
     points = [dict(zip(grid, combo)) for combo in itertools.product(*grid.values())]
     combos = [(i, e, g, m) for i, e in enumerate(entries) for g in points
@@ -243,7 +244,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
                                   if member >= 0 else "")
         raw = apply(base_raw, overrides, src, where)
         try:
-            resolved = flatten(validate(raw, str(base)).to_dict())
+            case = validate(raw, str(base))
+            resolved = flatten(case.to_dict())
         except InputError as exc:
             raise InputError(src, f"{where}: {exc.key}" if exc.key else where,
                              exc.reason) from None
@@ -258,7 +260,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
         if wanted and name not in wanted and str(index) not in wanted:
             continue
         runs.append(Run(index, name, values, overrides, raw,
-                        "" if label is None else str(label), member))
+                        "" if label is None else str(label), member,
+                        case_elements(case) if mode == "fe" else 0.0))
     if wanted and not runs:
         raise InputError("--only", "", f"no run of {src.name} is named {', '.join(sorted(wanted))} "
                          "(see --dry-run for the names)")
