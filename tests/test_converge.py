@@ -208,10 +208,11 @@ def test_command_recovers_the_tether_stretch_at_second_order(tmp_path, capsys):
 
 # -- the grids ---------------------------------------------------------------------------------
 
-def test_web_grids_fit_the_side_keep_parity_and_the_web_mass(tmp_path):
+def test_web_grids_fit_the_side_keep_parity_hole_and_web_mass(tmp_path, caplog):
     """sqrt 2 from the paper's 40 x 40 grid: 56 and 80 (even: the fold keeps its central
-    cross), ratios 1.4 and 1.43; a web given by its cable area keeps its areal density, so
-    its mass; a time.dt cap follows the width."""
+    cross), ratios 1.4 and 1.43; the hub cut-out pinned at the base grid's 7.5 m (a warning
+    for the 56 grid, which has no line there); a web given by its cable area keeps its
+    areal density, so its mass; a time.dt cap follows the width."""
     from spinweb_fe.case.load import validate
 
     text = (ROOT / "cases" / "paper_free_web.toml").read_text()
@@ -227,9 +228,13 @@ def test_web_grids_fit_the_side_keep_parity_and_the_web_mass(tmp_path):
     assert cases[0].cable.area == pytest.approx(1.0284e-5, rel=1e-12)
     assert [c.time.dt for c in cases] == pytest.approx([1e-5, 1e-5 / 1.4, 0.5e-5])
     assert all(c.output.frame_dt == 0 for c in cases)
+    assert [c.web.hub_cutout for c in cases] == [7.5, 7.5, 7.5]
+    assert "width 1.78571 m has no mesh line at the hub cut-out 7.5 m" in caplog.text
+    caplog.clear()
     # explicit widths
-    p = converge.plan(case, widths=[1.25, 2.5, 5.0])
-    assert [m.h for m in p.members] == [5.0, 2.5, 1.25]
+    p = converge.plan(case, widths=[0.625, 2.5, 1.25])
+    assert [m.h for m in p.members] == [2.5, 1.25, 0.625]
+    assert "no mesh line" not in caplog.text  # nested grids keep the hole
 
 
 BAD = [
@@ -269,7 +274,8 @@ def test_dry_run_lists_the_grids(capsys):
                  "--quick"]) == 0
     out = capsys.readouterr().out
     assert "0_mesh_width=2.5: h = 2.5 m" in out and "2_mesh_width=0.625" in out
-    assert "hub_omega@0.25" in out and "deploy_time" in out
+    # the ramp prescribes the hub rate: its torque is the answer
+    assert "hub_torque@0.25" in out and "hub_omega" not in out and "deploy_time" in out
 
 
 def test_first_crossing_between_rows():

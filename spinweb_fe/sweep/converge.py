@@ -191,6 +191,7 @@ def plan(path, sets=(), widths=None, ratio=RATIO, levels=3, quick=False, end=Non
     for q in names:
         parse_quantity(q)
     members = []
+    cutout = hole(case)
     h0 = case.web.mesh_width if case.scene == "web" else case.tethers.length / case.tethers.elements
     for k, (n, h) in enumerate(sorted(zip(counts, hs), key=lambda x: -x[1])):
         raw = copy.deepcopy(raw0)
@@ -199,6 +200,9 @@ def plan(path, sets=(), widths=None, ratio=RATIO, levels=3, quick=False, end=Non
         if case.scene == "web" and case.web.areal_density is None:
             _set(raw, "web.areal_density", areal_density(case))
             _set(raw, "cable.area", None)
+        if cutout is not None:
+            _set(raw, "web.hub_cutout", cutout)
+            _check_cutout(src, case.web.side, h, cutout)
         _set(raw, "time.end", end)
         _set(raw, "output.frame_dt", 0.0)
         if case.time.dt is not None:
@@ -213,6 +217,30 @@ def plan(path, sets=(), widths=None, ratio=RATIO, levels=3, quick=False, end=Non
                 case.title)
 
 
+def hole(case) -> float | None:
+    """[m] the square web's hub cut-out, pinned for every grid at the base grid's (by
+    default the smallest grid line outside the hub follows the mesh: 7.5 m at t = 2.5 and
+    1.25 m, 6.875 m at 0.625 m, and the root region and frame with it); None for other
+    topologies and tethers."""
+    from meshgen.build import quadquad_cutout
+
+    if case.scene != "web" or case.web.topology != "quadquad":
+        return None
+    w = case.web
+    return quadquad_cutout(w.side, w.mesh_width, case.hub.radius, w.hub_cutout)
+
+
+def _check_cutout(src, side, h, cutout):
+    """A warning when a grid has no line at the pinned cut-out (its hole is larger)."""
+    from meshgen.flat import effective_cutout
+
+    got = effective_cutout(side, h, cutout)
+    if abs(got - cutout) > 1e-9 * side:
+        log.warning("%s: the grid of width %.6g m has no mesh line at the hub cut-out "
+                    "%.6g m: its hole is %.6g m (the geometry changes with the mesh; widths "
+                    "that divide the cut-out keep it)", src, h, cutout, got)
+
+
 def areal_density(case) -> float:
     """[kg/m^2] the areal density of a web given by its cable area (kept as the mesh is
     refined, so that the web's mass stays)."""
@@ -224,10 +252,14 @@ def areal_density(case) -> float:
 
 
 def default_quantities(case, times) -> tuple:
-    """Hub rate and mean arm length at ``times``, deployment time, peak tension (and
+    """Hub rate (the hub torque where the law prescribes the rate) and mean arm length at
+    ``times`` and their means over the window, deployment time, peak tension (and
     utilisation with a failure strain), and the margins of the verdict's criteria."""
-    out = [f"hub_omega@{t:g}" for t in times] + [f"arm_length@{t:g}" for t in times]
-    out += ["deploy_time", "peak_tension"]
+    from spinweb_fe.fe.control import LAWS
+
+    hub = "hub_torque" if LAWS[case.control.law].prescribes_rate else "hub_omega"
+    out = [f"{hub}@{t:g}" for t in times] + [f"arm_length@{t:g}" for t in times]
+    out += [f"{hub}@mean", "arm_length@mean", "deploy_time", "peak_tension"]
     if case.cable.failure_strain is not None:
         out += ["peak_utilisation", "margin.overstrain"]
     out += [f"margin.{c}" for c in ("deployed", "recoil", "slack", "swing", "energy",
