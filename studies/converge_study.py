@@ -8,9 +8,10 @@
   verdict's stability from all four), through ``spinweb_fe.sweep.converge`` on a local Dask
   cluster: ``benchmarks/results/converge/paper_*_web.json``, ``docs/img/converge_*.png``,
   the wall time of each study and the machine's load.
-- ``why``: the first 0.2 s of seven scenes that take one ingredient of the paper's web at a
-  time (straight tethers, coiled tethers, the bundled web, the paper's web, the web without
-  corner masses, the flat web with and without them) on three grids each, and each scene's
+- ``why`` (``--scenes a,b``: only these): the first 0.2 s of eight scenes that take one
+  ingredient of the paper's web at a time (straight tethers, coiled tethers, the bundled
+  web, the paper's web, the web without corner masses, the web with a 10x stiffer cable, the
+  flat web with and without corner masses) on three grids each, and each scene's
   sensitivity: the same scene on its coarsest grid with the hub inertia changed by 1e-9:
   ``benchmarks/results/converge/why.json``.
 - ``corners``: the flat web's steady spin at 8 pi rad/s (``initial.state = "steady"``, the
@@ -65,6 +66,10 @@ def _no_tips(raw):
     raw["tip_mass"] = {"mass": 0.0}
 
 
+def _stiffer(raw, factor):
+    raw["cable"]["youngs_modulus"] *= factor
+
+
 #: name -> (label, case dict, widths [m] or element lengths)
 VARIANTS = {
     "tethers_straight": ("tethers, straight (no coil, no fold)",
@@ -78,6 +83,9 @@ VARIANTS = {
             lambda: _variant("paper_free_web", lambda r: None), (2.5, 1.25, 0.625)),
     "web_no_tips": ("web without corner masses",
                     lambda: _variant("paper_free_web", _no_tips), (2.5, 1.25, 0.625)),
+    "web_stiff10": ("web, cable 10x stiffer (corners 10x less compliant)",
+                    lambda: _variant("paper_free_web", lambda r: _stiffer(r, 10.0)),
+                    (2.5, 1.25, 0.625)),
     "flat": ("flat web, free (no coil, no fold)",
              lambda: _variant("paper_free_web", lambda r: _no_coil(r, "flat")),
              (2.5, 1.25, 0.625)),
@@ -130,14 +138,19 @@ def _hub_rate(path) -> tuple:
         return g["time"][()], g["hub_omega"][()], g["arm_length"][()].mean(axis=1)
 
 
-def why(out: Path, workers: int):
+def why(out: Path, workers: int, scenes=None):
     from spinweb_fe.case.load import validate
     from spinweb_fe.run.driver import run_case
 
-    report = {"end": WHY_END, "times": WHY_TIMES, "perturbation": PERTURBATION, "scenes": {}}
+    path = RESULTS / "why.json"
+    report = json.loads(path.read_text()) if path.is_file() else {}
+    report.update(end=WHY_END, times=WHY_TIMES, perturbation=PERTURBATION)
+    report.setdefault("scenes", {})
     qs = [f"hub_omega@{t:g}" for t in WHY_TIMES] + [f"arm_length@{t:g}" for t in WHY_TIMES]
     qs += ["hub_omega@mean", "arm_length@mean", "contact_dissipation@end", "kinetic_energy@end"]
     for name, (label, make, widths) in VARIANTS.items():
+        if scenes and name not in scenes:
+            continue
         folder = out / "why" / name
         folder.mkdir(parents=True, exist_ok=True)
         case_path = folder / "case.toml"
@@ -166,8 +179,8 @@ def why(out: Path, workers: int):
             "sensitivity_hub_omega": sens_w, "sensitivity_arm_length": sens_l,
             "wall_s": res["study_wall_s"]}
         RESULTS.mkdir(parents=True, exist_ok=True)
-        (RESULTS / "why.json").write_text(json.dumps(converge_report._clean(report),
-                                                     indent=1) + "\n")
+        report["scenes"] = {k: report["scenes"][k] for k in VARIANTS if k in report["scenes"]}
+        path.write_text(json.dumps(converge_report._clean(report), indent=1) + "\n")
         print(f"{name}: {res['study_wall_s']:.0f} s")
 
 
@@ -296,6 +309,7 @@ def main(argv=None):
     ap.add_argument("stages", nargs="*", default=["paper", "why", "corners", "figs", "tables"])
     ap.add_argument("--out", default="out/converge_study", type=Path)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--scenes", default="", help="why: only these scenes (comma-separated)")
     args = ap.parse_args(argv)
     import logging
 
@@ -304,7 +318,7 @@ def main(argv=None):
         if stage == "paper":
             paper(args.out, args.workers)
         elif stage == "why":
-            why(args.out, args.workers)
+            why(args.out, args.workers, [x for x in args.scenes.split(",") if x])
         elif stage == "corners":
             corners()
         elif stage == "figs":

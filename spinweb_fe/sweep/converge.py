@@ -114,11 +114,14 @@ def _counts(case, src, widths, ratio, levels) -> tuple:
         size, n0, what = case.web.side, case.web.side / case.web.mesh_width, "the side"
     else:
         size, n0, what = case.tethers.length, float(case.tethers.elements), "the tether"
+    if abs(n0 - round(n0)) > 1e-9 * n0:
+        raise InputError(src, MESH_KEY[case.scene], f"the side {size:g} m is not a whole "
+                         f"number of mesh widths (side / width = {n0:.9g})")
     if widths:
         counts = []
         for w in widths:
-            n = size / w
-            if not (w > 0 and abs(n - round(n)) <= 1e-9 * n and round(n) >= 2):
+            n = size / w if w > 0 else 0.0
+            if not (abs(n - round(n)) <= 1e-9 * n and round(n) >= 2):
                 raise InputError("--widths", "", f"{w:g} m does not fit {what} "
                                  f"({size:g} m) a whole number of times")
             counts.append(round(n))

@@ -118,7 +118,8 @@ def lines(result: dict) -> list:
         gci_pc = f"{100 * q['gci_fine']:.3g} %" if math.isfinite(q["gci_fine"]) else "-"
         bars = ", ".join(_fmt(b, 3) for b in q["error_bar"])
         tail = (f"  range [{_fmt(q['low'])}, {_fmt(q['high'])}]" if q["kind"] in (
-            "oscillatory", "divergent") else "")
+            "oscillatory", "divergent") else f"  ({q['note']})" if q["note"] and q["kind"]
+            == "monotone" else "")
         out.append(f"{q['name']:<22} " + " ".join(f"{_fmt(v):>11}" for v in q["values"])
                    + f"  {q['kind']:<11} {_fmt(q['order'], 3):>6} "
                    f"{_fmt(q['extrapolated'], 6):>12} {gci_pc:>9}  {bars} [{q['units']}]"

@@ -32,6 +32,10 @@ SAFETY = 1.25
 P_TOL, P_ITER = 1e-12, 500
 #: values that differ by less than this share of their size are equal (round-off)
 ROUNDOFF = 1e-10
+#: observed orders outside this range get a note: below it the differences barely shrink
+#: and the extrapolation reaches far; above it (the scheme is at most second order) they
+#: shrink by a coincidence of the three values more likely than by the asymptotic law
+ORDER_RANGE = (0.5, 3.0)
 #: kinds of convergence
 KINDS = ("monotone", "oscillatory", "divergent", "equal", "incomplete")
 
@@ -161,9 +165,17 @@ def _estimate(h, phi, used, safety) -> Estimate:
     eext = abs((ext - f1) / ext) if ext != 0 else math.inf
     bars = tuple(safety * abs(f - ext) for f in phi)
     u1 = safety * abs(e21) / (rp - 1.0)
+    note = ""
+    if p < ORDER_RANGE[0]:
+        note = (f"order {p:.2g} below {ORDER_RANGE[0]}: the differences barely shrink, the "
+                "extrapolation is not reliable (not in the asymptotic range)")
+    elif p > ORDER_RANGE[1]:
+        note = (f"order {p:.2g} above {ORDER_RANGE[1]} (the scheme is at most second order): "
+                "the agreement of the finer grids may be a coincidence")
     return Estimate(kind="monotone", order=p, extrapolated=ext,
                     gci_fine=u1 / abs(f1) if f1 != 0 else math.inf, approx_error=ea,
-                    extrap_error=eext, low=f1 - u1, high=f1 + u1, error_bar=bars, **base)
+                    extrap_error=eext, low=f1 - u1, high=f1 + u1, error_bar=bars, note=note,
+                    **base)
 
 
 def study(h, phi, safety: float = SAFETY) -> Estimate:
