@@ -1,7 +1,8 @@
 """Every answer with its error bar: mesh convergence of the paper's webs, and why it is slow
 (docs/validation.md, section 6; docs/converge.md).
 
-    python -m studies.converge_study [paper] [why] [corners] [figs] [tables] [--workers 2]
+    python -m studies.converge_study [paper] [why] [corners] [figs] [tables] [reanalyse]
+                                     [--workers 2] [--scenes a,b]
 
 - ``paper``: the free web, the feedback web and the spin ramp (``cases/paper_*_web.toml``)
   over their whole runs at t = 5, 2.5, 1.25 and 0.625 m (the GCI from the three finest, the
@@ -19,6 +20,7 @@
   masses: the largest strain and the tips' radius (``corners`` in why.json).
 - ``figs``: ``docs/img/converge_why.png`` from why.json.
 - ``tables``: the markdown tables of docs/validation.md from the JSON files.
+- ``reanalyse``: the paper studies' estimates again from their stored values (no run).
 """
 
 from __future__ import annotations
@@ -128,6 +130,33 @@ def paper(out: Path, workers: int):
         converge_report.plot(result, IMG / f"converge_{name}.png")
         print(f"{name}: {result['study_wall_s']:.0f} s")
         print("\n".join(converge_report.lines(result)))
+
+
+def reanalyse():
+    """The paper studies' estimates again from their stored values (after a change of the
+    numerics; no run)."""
+    for name, times in PAPER.items():
+        path = RESULTS / f"{name}.json"
+        if not path.is_file():
+            continue
+        old = json.loads(path.read_text())
+        plan = converge.plan(ROOT / "cases" / f"{name}.toml", widths=PAPER_WIDTHS, times=times)
+        vals = {q["name"]: q["values"] for q in old["quantities"]}
+        rows = []
+        for k, g in enumerate(old["grids"]):
+            passed = {v["criterion"]: v["passed"][k] for v in old["verdicts"]
+                      if v["criterion"] != "verdict"}
+            rows.append({"values": {q: (math.nan if vals.get(q) is None or vals[q][k] is None
+                                        else vals[q][k]) for q in plan.quantities},
+                         "passed": passed, "status": g["status"],
+                         "wall_time_s": g["wall_time_s"],
+                         "info": {"elements": g["elements"], "dt": g["dt"],
+                                  "steps": g["steps"]}})
+        result = converge_report.analyse(plan, rows)
+        for key in ("study_wall_s", "machine_before", "machine_after"):
+            result[key] = old[key]
+        _save(name, result)
+        converge_report.plot(result, IMG / f"converge_{name}.png")
 
 
 def _hub_rate(path) -> tuple:
@@ -319,6 +348,8 @@ def main(argv=None):
             paper(args.out, args.workers)
         elif stage == "why":
             why(args.out, args.workers, [x for x in args.scenes.split(",") if x])
+        elif stage == "reanalyse":
+            reanalyse()
         elif stage == "corners":
             corners()
         elif stage == "figs":

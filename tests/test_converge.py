@@ -121,8 +121,10 @@ def test_study_of_four_grids_uses_the_finest_three_with_values():
     phi = list(2.0 + 0.3 * np.array(h) ** 2)
     est = gci.study(h, [math.nan] + phi[1:])  # the finest run failed
     assert est.used == (1, 2, 3) and est.order == pytest.approx(2.0)
+    assert math.isnan(est.error_bar[0]) and est.error_bar[1] == pytest.approx(1.25 * 0.3)
     est = gci.study(h[::-1], phi[::-1])
     assert est.used == (0, 1, 2) and [t[1] for t in est.triples] == pytest.approx([2.0, 2.0])
+    assert math.isnan(est.error_bar[3])  # the coarsest grid is outside the estimate
     with pytest.raises(ValueError):
         gci.study(h[:2], phi[:2])
 

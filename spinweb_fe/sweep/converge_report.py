@@ -43,10 +43,13 @@ def analyse(p: Plan, rows, safety: float = gci.SAFETY) -> dict:
     quantities = []
     for q in p.quantities:
         vals = [r["values"].get(q, math.nan) for r in rows]
-        if all(not math.isfinite(v) for v in vals) and all(r["status"] == "ok" for r in rows):
-            continue  # the quantity does not apply to this case (a criterion not judged)
+        none = all(not math.isfinite(v) for v in vals) and all(r["status"] == "ok" for r in rows)
+        if none and q.startswith("margin."):
+            continue  # the criterion does not apply to this case
         est = gci.study(hs, vals, safety)
         d = est.as_dict()
+        if none:
+            d["note"] = "no grid has a value: the event does not happen within the window"
         by_h = dict(zip(est.h, est.error_bar))  # finest first -> the grids' order
         d.update(error_bar=[by_h.get(h, math.nan) for h in hs],
                  used=[hs.index(est.h[i]) for i in est.used])
@@ -174,6 +177,6 @@ def plot(result: dict, path):
         axes.flat[0].legend(fontsize=6)
     fig.suptitle(f"{result['title'] or result['case']}: mesh convergence to "
                  f"t = {result['end']:g} s", fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
     fig.savefig(path, dpi=110)
     plt.close(fig)

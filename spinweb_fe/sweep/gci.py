@@ -45,10 +45,10 @@ class Estimate:
     """The discretisation error of one quantity from its three finest grids.
 
     ``h`` and ``phi`` (all grids, finest first) are the inputs; ``used`` the indices of the
-    three grids of the estimate. ``error_bar`` (per grid, the quantity's units): monotone,
-    Fs |phi_k - phi_ext| (the finest grid's is GCI_fine |phi1|, the next Roache's coarse-grid
-    GCI); without an order, the spread max - min of the three values (a range, not a
-    bound). ``low``, ``high``: the finest value's band (monotone phi1 -+ its error bar;
+    three grids of the estimate. ``error_bar`` (per grid, the quantity's units; NaN on the
+    grids outside the estimate): monotone, Fs |phi_k - phi_ext| (the finest grid's is
+    GCI_fine |phi1|, the next Roache's coarse-grid GCI); without an order, the spread
+    max - min of the three values (a range, not a bound). ``low``, ``high``: the finest value's band (monotone phi1 -+ its error bar;
     otherwise the three values' range).
     """
 
@@ -132,6 +132,11 @@ def triple(h, phi, safety: float = SAFETY) -> Estimate:
     return _estimate(h, phi, (0, 1, 2), safety)
 
 
+def _on(used, n, bar) -> tuple:
+    """Error bars on the grids of the estimate, NaN on the others (not estimated)."""
+    return tuple(bar(k) if k in used else math.nan for k in range(n))
+
+
 def _estimate(h, phi, used, safety) -> Estimate:
     (h1, h2, h3), (f1, f2, f3) = (h[i] for i in used), (phi[i] for i in used)
     r21, r32 = h2 / h1, h3 / h2
@@ -144,7 +149,7 @@ def _estimate(h, phi, used, safety) -> Estimate:
     lo, hi = min(f1, f2, f3), max(f1, f2, f3)
     if hi - lo <= ROUNDOFF * max(abs(lo), abs(hi)):
         return Estimate(kind="equal", extrapolated=f1, gci_fine=0.0, low=lo, high=hi,
-                        error_bar=(hi - lo,) * len(h),
+                        error_bar=_on(used, len(h), lambda k: hi - lo),
                         note="the same value on every grid (to round-off)", **base)
     kind, p = "divergent", math.nan
     if e21 * e32 < 0.0:
@@ -157,13 +162,14 @@ def _estimate(h, phi, used, safety) -> Estimate:
         note = ("the values alternate with refinement: no order, their range" if
                 kind == "oscillatory" else "the differences do not shrink with refinement: "
                 "no order, their range")
-        return Estimate(kind=kind, low=lo, high=hi, error_bar=(spread,) * len(h),
+        return Estimate(kind=kind, low=lo, high=hi, error_bar=_on(used, len(h),
+                                                                   lambda k: spread),
                         note=note, **base)
     rp = r21 ** p
     ext = (rp * f1 - f2) / (rp - 1.0)
     ea = abs(e21 / f1) if f1 != 0 else math.inf
     eext = abs((ext - f1) / ext) if ext != 0 else math.inf
-    bars = tuple(safety * abs(f - ext) for f in phi)
+    bars = _on(used, len(h), lambda k: safety * abs(phi[k] - ext))
     u1 = safety * abs(e21) / (rp - 1.0)
     note = ""
     if p < ORDER_RANGE[0]:
