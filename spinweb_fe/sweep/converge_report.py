@@ -13,7 +13,8 @@ import numpy as np
 
 from spinweb_fe.record.verdict import CRITERIA
 from spinweb_fe.sweep import gci
-from spinweb_fe.sweep.converge import Plan, units_of
+from spinweb_fe.sweep.converge import Plan
+from spinweb_fe.sweep.quantities import units_of
 
 
 def analyse(p: Plan, rows, safety: float = gci.SAFETY) -> dict:
@@ -154,6 +155,9 @@ def plot(result: dict, path):
         v = np.array(q["values"], float)
         bar = np.array(q["error_bar"], float)
         ok = np.isfinite(v)
+        if not ok.any():
+            ax.text(0.5, 0.5, "no value on any grid", ha="center", va="center",
+                    transform=ax.transAxes, fontsize=8)
         ax.errorbar(hs[ok], v[ok], yerr=np.where(np.isfinite(bar), bar, 0.0)[ok], fmt="o",
                     color="C0", capsize=3, label="grids")
         if math.isfinite(q["low"]) and math.isfinite(q["high"]):

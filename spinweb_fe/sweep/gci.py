@@ -48,8 +48,8 @@ class Estimate:
     three grids of the estimate. ``error_bar`` (per grid, the quantity's units; NaN on the
     grids outside the estimate): monotone, Fs |phi_k - phi_ext| (the finest grid's is
     GCI_fine |phi1|, the next Roache's coarse-grid GCI); without an order, the spread
-    max - min of the three values (a range, not a bound). ``low``, ``high``: the finest value's band (monotone phi1 -+ its error bar;
-    otherwise the three values' range).
+    max - min of the three values (a range, not a bound). ``low``, ``high``: the finest
+    value's band (monotone phi1 -+ its error bar; otherwise the three values' range).
     """
 
     h: tuple
