@@ -23,7 +23,7 @@ from spinweb_fe.cli import environ
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
 
 COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "modes", "info", "render",
-            "sweep", "design")
+            "sweep", "design", "converge")
 log = logging.getLogger(__name__)
 
 

@@ -330,8 +330,51 @@ def run_one(task: dict) -> dict:
     the run's log go to ``out_dir/run.log``.
     """
     t0 = time.perf_counter()
-    os.environ["SPINWEB_COMPILE_HELPER"] = "0"  # the workers share the cores already
     out = Path(task["out_dir"])
+    with member_log(out) as spin_log:
+        try:
+            case = validate(task["raw"], task["source"])
+            if task["mode"] == "fe":
+                from spinweb_fe.run.driver import run_case
+
+                run_case(case, out, progress=False)
+                metrics, crits = fe_metrics(out / "results.h5")
+            else:
+                from spinweb_fe.analytic import solve as analytic
+
+                res = analytic.solve_case(case, model=task["model"])
+                analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
+                if res.stopped:
+                    raise RunError(res.stopped, time=float(res.history["time"][-1]))
+                p = res.params
+                metrics = history_metrics(res.history, p.r0 + p.H, p.r0,
+                                          verdict.limits_of(case.verdict)["deployed_fraction"])
+                crits = analytic.judge(case, res)
+            recoil = next(c for c in crits if c.name == "recoil")
+            metrics.update(recoiled=float(recoil.passed is False),
+                           passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
+                           failed=",".join(verdict.failed_names(crits)))
+            status = "ok"
+        except Exception as exc:  # recorded, not fatal: the sweep goes on
+            spin_log.error("run failed:\n%s", traceback.format_exc())
+            metrics = {name: math.nan for name, _, _ in METRICS}
+            metrics["failed"] = "run failed"
+            status = one_line(exc)
+    return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
+
+
+def one_line(exc) -> str:
+    """An error as a run's status: its type and first line."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
+
+
+@contextlib.contextmanager
+def member_log(out: Path):
+    """The log of one run on a worker: ``out/run.log`` gets the package's log lines (INFO
+    and up) while the block runs, and nothing goes to the worker's own log; the kernels'
+    compile helper is off (the workers share the cores already). Yields the package's
+    logger."""
+    os.environ["SPINWEB_COMPILE_HELPER"] = "0"
     out.mkdir(parents=True, exist_ok=True)
     spin_log = logging.getLogger("spinweb_fe")  # the package: every module logs under it
     handler = logging.FileHandler(out / "run.log", mode="w")
@@ -340,44 +383,17 @@ def run_one(task: dict) -> dict:
     spin_log.addHandler(handler)
     spin_log.propagate, spin_log.level = False, logging.INFO
     try:
-        case = validate(task["raw"], task["source"])
-        if task["mode"] == "fe":
-            from spinweb_fe.run.driver import run_case
-
-            run_case(case, out, progress=False)
-            metrics, crits = fe_metrics(out / "results.h5")
-        else:
-            from spinweb_fe.analytic import solve as analytic
-
-            res = analytic.solve_case(case, model=task["model"])
-            analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
-            if res.stopped:
-                raise RunError(res.stopped, time=float(res.history["time"][-1]))
-            p = res.params
-            metrics = history_metrics(res.history, p.r0 + p.H, p.r0,
-                                      verdict.limits_of(case.verdict)["deployed_fraction"])
-            crits = analytic.judge(case, res)
-        recoil = next(c for c in crits if c.name == "recoil")
-        metrics.update(recoiled=float(recoil.passed is False),
-                       passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
-                       failed=",".join(verdict.failed_names(crits)))
-        status = "ok"
-    except Exception as exc:  # recorded, not fatal: the sweep goes on
-        spin_log.error("run failed:\n%s", traceback.format_exc())
-        metrics = {name: math.nan for name, _, _ in METRICS}
-        metrics["failed"] = "run failed"
-        status = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        yield spin_log
     finally:
         spin_log.removeHandler(handler)
         handler.close()
         spin_log.propagate, spin_log.level = saved
-    return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
 
 
 def _failed(exc) -> dict:
     row = {name: math.nan for name, _, _ in METRICS}
     row["failed"] = "run failed"
-    row["status"] = f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
+    row["status"] = one_line(exc)
     return row
 
 
