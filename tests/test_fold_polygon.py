@@ -13,7 +13,8 @@ from meshgen.checks import check_mesh, eq7_error, eq7_reference
 from meshgen.fold import assign_arms, coil, corner_coord, frame_lead_in, star_fold, tie_mode
 from meshgen.mesh import lumped_mass
 from meshgen.registry import cable_length_per_area
-from meshgen.topologies import _nearest_on_outline, flat_other, outline_cutout, outline_hole
+from meshgen.clip import _nearest_on_outline
+from meshgen.topologies import flat_other, outline_cutout, outline_hole
 from spinweb_fe.case import loads
 from spinweb_fe.errors import InputError
 
