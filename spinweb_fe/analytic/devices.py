@@ -1,0 +1,418 @@
+"""The payout devices' regimes (consistent model; docs/analytic.md 4b-4c).
+
+The reel (:class:`~spinweb_fe.analytic.payout.Payout`, the free length prescribed):
+
+- ``paying``: the arm hangs from D, which the law moves back along the coil;
+- ``laid``: the arm lies along its coil's tangent at D while D moves at the law's rate (the
+  coil supports it and the reel holds it back at once: the sliding state between paying and
+  the free coil, which an event-based switch between those two alone would chatter on);
+- ``coiled`` (of :mod:`~spinweb_fe.analytic.regimes`): the free length is below the law's
+  (the line leaves the coil ahead of D, or wraps back over the hub beyond it).
+
+The brake (:class:`~spinweb_fe.analytic.payout.Brake`, the line's tension at D limited to
+F(t)):
+
+- ``stick``: the brake holds, the arm pivots about D (L' = 0);
+- ``slip``: the line runs through D at tension F (L a state);
+- ``peel``: at its coil's tangent the line leaves D without passing the brake (its slip
+  L' (1 + w sin beta) vanishes there), pulled harder than F: the coil pays out as the free
+  coil does, D moving with its departure point;
+- ``coiled``: the arm wraps back over the hub beyond D, which stays.
+
+Near the tangent the slip's equations are singular (the line's inertia along itself,
+m_f (1 + w sin beta), vanishes, and L' grows as eps^-1/2, eps the angle from the tangent):
+a slipping arm that comes within ``Ctx.band`` of its tangent is put on it (rotated about D
+by at most ``band``, K and E kept exactly), and a peel goes back to stick only when the
+line's pull falls ``Ctx.grip`` below the force (no switching without time passing). Both
+errors are measured in docs/analytic.md 4c. An arm that swings over its held coil (beta
+past the other tangent) leaves the model's validity: it stops there and says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from spinweb_fe.analytic import payout as pay_mod
+from spinweb_fe.analytic.models import HALF_PI, root_tension, solve_rows
+from spinweb_fe.analytic.regimes import (REGIMES, Event, Regime, Switch, coiled_accel,
+                                         coiled_events, no_rate, observe_free, release,
+                                         sigma_of, unwinding, wound_length)
+
+
+def _gap(ctx, y, L) -> float:
+    return pay_mod.tangent_gap(ctx.p, y[1], L, ctx.w)
+
+
+def _over(ctx, t, why_L):
+    """The event 'the arm swings over its held coil' (eps = pi) with the stop message."""
+    def fn(t, y):
+        return _gap(ctx, y, why_L(t, y)) - math.pi
+
+    def then(ctx, t, y):
+        return Switch("stopped", y, f"at t = {t:.6g} s the arm swings over its held coil, "
+                      "where its line would lie on the coil: beyond the analytical model")
+    return Event(fn, 1.0, then)
+
+
+def _on_tangent(ctx, y, L):
+    """y with the arm exactly on its coil's tangent at free length L (phi = -w (pi/2 +
+    alpha)), L' = 0."""
+    y = y.copy()
+    y[1] = -ctx.w * (HALF_PI + (ctx.p.H - L) / ctx.p.r0)
+    y[6], y[7] = L, 0.0
+    return y
+
+
+def to_tangent(ctx, y):
+    """Put a slipping (or sticking) arm within the band on its tangent at D, keeping the
+    angular momentum and the kinetic energy: at the tangent E = J0 omega^2/2 + n I Psi^2/2
+    and K = J0 omega + n I Psi, solved for (omega, Psi) next to the state's."""
+    p = ctx.p
+    L = y[6]
+    E, K = pay_mod.invariants(p, y[1], y[2], y[3], L, y[7], ctx.w)
+    nI = p.n * p.moments(L)[2]
+    J0 = p.J0
+    a, b, c = J0 * (J0 + nI), -2.0 * K * J0, K * K - 2.0 * nI * E
+    disc = max(b * b - 4.0 * a * c, 0.0)
+    roots = [(-b + s * math.sqrt(disc)) / (2.0 * a) for s in (1.0, -1.0)]
+    omega = min(roots, key=lambda r: abs(r - y[2]))
+    y = _on_tangent(ctx, y, L)
+    y[2], y[3] = omega, (K - J0 * omega) / nI
+    return y
+
+
+# -- captured -----------------------------------------------------------------------------
+
+def captured_events(ctx, t0, y0):
+    """A captured arm: released when the free equations unwind it; under a reel also when
+    the law lets its free length out."""
+    out = [] if release(ctx, t0, y0) > 0.0 else [  # (unwinding already: waits for its law)
+        Event(lambda t, y: release(ctx, t, y), 1.0, on_release)]
+    if ctx.pay is not None:
+        out.append(Event(lambda t, y: ctx.law_length(t)[0] - wound_length(ctx.p, y[1]), 1.0,
+                         on_allowed))
+    return out
+
+
+def on_release(ctx, t, y):
+    """The captured arm starts to unwind."""
+    if ctx.brake is not None:
+        return brake_fold(ctx, t, y)
+    if ctx.pay is not None:
+        L, Lc = ctx.law_length(t)[0], wound_length(ctx.p, y[1])
+        if L < Lc * (1.0 - 1e-9):
+            return Switch("captured", y)        # waits for its law
+        return reel_fold(ctx, t, y) if L <= Lc * (1.0 + 1e-9) else Switch("coiled", y)
+    return Switch("coiled", y)
+
+
+def on_allowed(ctx, t, y):
+    """The reel's law reaches the captured free length."""
+    if release(ctx, t, y) >= 0.0:
+        return reel_fold(ctx, t, y)
+    return Switch("captured", y)
+
+
+def _captured_enter(ctx, t, y):
+    if release(ctx, t, y) > 0.0:
+        sw = on_release(ctx, t, y)
+        return None if sw.regime == "captured" else sw
+    return None
+
+
+# -- the reel -----------------------------------------------------------------------------
+
+def _paying_accel(ctx, t, y):
+    L, Ld = ctx.law_length(t)
+    torque, wd = ctx.law(t, y[2])
+    a = solve_rows(pay_mod.rows(ctx.p, y[1], y[2], y[3], L, Ld, ctx.w), torque, wd)
+    return a[0], a[1], 0.0, a[2]
+
+
+def _laid_accel(ctx, t, y):
+    """The arm on its tangent at D moving at the law: K = J0 omega + n I Psi, Psi = omega +
+    w L'/r0, so (J0 + n I) omega' = M - 2 n S L' Psi (L'' = 0 on a law's segment)."""
+    p = ctx.p
+    L, Ld = ctx.law_length(t)
+    _, S, I = p.moments(L)
+    torque, wd = ctx.law(t, y[2])
+    J, drag = p.J0 + p.n * I, 2.0 * p.n * S * Ld * y[3]
+    if wd is None:
+        wd = (torque - drag) / J
+        return wd, wd, 0.0, torque
+    return wd, wd, 0.0, J * wd + drag
+
+
+def _lifts(ctx, t, y) -> float:
+    """w beta'' of the paying equations at a state on the tangent (> 0: the arm swings off
+    the coil)."""
+    wd, pd, _, _ = _paying_accel(ctx, t, y)
+    return ctx.w * (pd - wd)
+
+
+def _outruns(ctx, t, y) -> float:
+    """L'' of the free coil at a state on the tangent (> 0: it would unwind faster than the
+    law, which holds it; the law's L'' is 0)."""
+    wd, pd, _, _ = coiled_accel(ctx, t, y)
+    return -sigma_of(y[1]) * ctx.p.r0 * (pd - wd)
+
+
+def reel_fold(ctx, t, y):
+    """The regime of an arm at its coil's tangent with the law's free length: paying if it
+    swings off the coil, the free coil if it unwinds slower than the law, laid if neither
+    (the coil supports it and the reel holds it)."""
+    p = ctx.p
+    L, Ld = ctx.law_length(t)
+    if L >= p.H:
+        return Switch("coiled", y)
+    y = _on_tangent(ctx, y, L)
+    y[6] = p.H
+    bp = -sigma_of(y[1]) * (y[3] - y[2]) - Ld / p.r0   # w beta' of the paying arm
+    if abs(bp) > 1e-9 * max(abs(y[2]), Ld / p.r0, 1e-300):
+        return Switch("paying" if bp > 0 else "coiled", y)
+    if _lifts(ctx, t, y) > 0.0:
+        return Switch("paying", y)
+    if _outruns(ctx, t, y) <= 0.0:
+        return Switch("coiled", y)
+    y[3] = y[2] + ctx.w * Ld / p.r0
+    return Switch("laid", y)
+
+
+def _law_L(ctx):
+    return lambda t, y: ctx.law_length(t)[0]
+
+
+def _full(ctx):
+    """The law reaches H: the arm pivots about its root."""
+    def fn(t, y):
+        return ctx.law_length(t)[0] - ctx.p.H * (1.0 - 1e-12)
+
+    def then(ctx, t, y):
+        y = y.copy()
+        y[6], y[7] = ctx.p.H, 0.0
+        return Switch("pivoting", y)
+    return Event(fn, 1.0, then)
+
+
+def _paying_events(ctx, t0, y0):
+    L = _law_L(ctx)
+    slack = Event(lambda t, y: _gap(ctx, y, L(t, y)), -1.0, reel_fold)
+    return [slack, _over(ctx, t0, L), _full(ctx)]
+
+
+def _laid_events(ctx, t0, y0):
+    return [Event(lambda t, y: _lifts(ctx, t, y), 1.0, lambda c, t, y: Switch("paying", y)),
+            Event(lambda t, y: _outruns(ctx, t, y), -1.0, lambda c, t, y: Switch("coiled", y)),
+            _full(ctx)]
+
+
+def _reel_observe(regime):
+    def observe(ctx, t, y):
+        p, w = ctx.p, ctx.w
+        L, Ld = ctx.law_length(t)
+        wd, _, _, M = REGIMES[regime].accel(ctx, t, y)
+        E, K = pay_mod.invariants(p, y[1], y[2], y[3], L, Ld, w)
+        N = pay_mod.tension(p, y[1], y[2], y[3], wd, L, Ld, w)
+        dev = pay_mod.line_tension(p, y[1], y[2], y[3], wd, L, Ld, 0.0, w)
+        return E, K, N, L, pay_mod.tip_rate(p, y[1], y[2], y[3], L, Ld, w), M, dev, Ld
+    return observe
+
+
+def _laid_enter(ctx, t, y):
+    sw = reel_fold(ctx, t, y)
+    return None if sw.regime == "laid" else sw
+
+
+# -- the brake ----------------------------------------------------------------------------
+
+def _stick_accel(ctx, t, y):
+    torque, wd = ctx.law(t, y[2])
+    a = solve_rows(pay_mod.rows(ctx.p, y[1], y[2], y[3], y[6], 0.0, ctx.w), torque, wd)
+    return a[0], a[1], 0.0, a[2]
+
+
+def _slip_accel(ctx, t, y):
+    torque, wd = ctx.law(t, y[2])
+    A, b = pay_mod.slip_rows(ctx.p, y[1], y[2], y[3], y[6], y[7], ctx.w, ctx.force(t))
+    try:
+        return pay_mod.slip_accelerations(A, b, torque, wd)
+    except np.linalg.LinAlgError:  # a trial stage on the tangent: solve_ivp shortens its step
+        return (math.nan,) * 4
+
+
+def _line(ctx, t, y, regime) -> float:
+    """The brake's force at D [N]: in a stick state the line's tension just outside D (what
+    the brake holds, finite up to the tangent; the FE brake's measure), in a slip state the
+    force against the slip (:func:`spinweb_fe.analytic.payout.device_force`, F: its power
+    is -F L' (1 + w sin beta)); the two are one for a point mass on a massless line."""
+    wd, pd, Ldd, _ = REGIMES[regime].accel(ctx, t, y)
+    if regime == "slip":
+        return pay_mod.device_force(ctx.p, y[1], y[2], y[3], wd, pd, y[6], y[7], Ldd, ctx.w)
+    return pay_mod.line_tension(ctx.p, y[1], y[2], y[3], wd, y[6], 0.0, 0.0, ctx.w)
+
+
+def _coil_pull(ctx, t, y) -> float:
+    """The free coil's tension at its departure point [N]."""
+    wd = coiled_accel(ctx, t, y)[0]
+    return root_tension(ctx.p, y[1], y[2], y[3], wd, True)
+
+
+def _pull(ctx, t, y) -> float:
+    """What an arm on its tangent at D asks of the brake [N]: the larger of the free coil's
+    pull at its departure point and the tension that holds it there (equal while it does
+    not move along its coil)."""
+    return max(_coil_pull(ctx, t, y), _line(ctx, t, y, "stick"))
+
+
+def _to_peel(ctx, t, y):
+    """Peel from a state on the tangent; y[7] (unused while peeling) keeps the pull at which
+    the brake grips again: ``grip`` below the smaller of the force and the pull now (so
+    that the peel lasts, where a sticking arm within the band asks F and the peel less)."""
+    y = y.copy()
+    y[7] = (1.0 - ctx.grip) * min(ctx.force(t), _pull(ctx, t, y))
+    return Switch("peel", y)
+
+
+def brake_fold(ctx, t, y):
+    """The regime of an arm at its coil's tangent at D (L = y[6]): if it unwinds and asks
+    the brake at least its force, it peels off (the line leaves D along the coil, without
+    passing the brake: the free coil's course), if it unwinds asking less, the brake holds
+    it (stick: the arm swings off its coil); if it winds back, it wraps over the hub beyond
+    D (coiled)."""
+    y = _on_tangent(ctx, y, y[6])
+    if unwinding(ctx, t, y) > 0.0:
+        return _to_peel(ctx, t, y) if _pull(ctx, t, y) >= ctx.force(t) else Switch("stick", y)
+    return Switch("coiled", y)
+
+
+def _slips(ctx, t, y):
+    """The tension at D reaches the force: the line slips; within twice the band of the
+    tangent (where a slip would be put on it again at the band) it peels off, or wraps
+    back, instead."""
+    if _gap(ctx, y, y[6]) >= 2.0 * ctx.band:
+        y = y.copy()
+        y[7] = 0.0
+        return Switch("slip", y)
+    y = to_tangent(ctx, y)
+    if unwinding(ctx, t, y) > 0.0:
+        return _to_peel(ctx, t, y)
+    return Switch("coiled", y)
+
+
+def _stick_events(ctx, t0, y0):
+    LD = lambda t, y: y[6]  # noqa: E731 - D's free length
+    slips = Event(lambda t, y: _line(ctx, t, y, "stick") - ctx.force(t), 1.0, _slips)
+    fold = Event(lambda t, y: _gap(ctx, y, y[6]), -1.0, brake_fold)
+    return [slips, fold, _over(ctx, t0, LD)]
+
+
+def _stick_enter(ctx, t, y):
+    return _slips(ctx, t, y) if _line(ctx, t, y, "stick") > ctx.force(t) else None
+
+
+def _slip_events(ctx, t0, y0):
+    def stops(ctx, t, y):
+        y = y.copy()
+        y[7] = 0.0
+        return Switch("stick", y)
+
+    def arrest(ctx, t, y):
+        return brake_fold(ctx, t, to_tangent(ctx, y))
+
+    def full(ctx, t, y):
+        y = y.copy()
+        y[6], y[7] = ctx.p.H, 0.0
+        return Switch("pivoting", y)
+    return [Event(lambda t, y: y[7], -1.0, stops),
+            Event(lambda t, y: _gap(ctx, y, y[6]) - ctx.band, -1.0, arrest),
+            Event(lambda t, y: y[6] - ctx.p.H, 1.0, full),
+            _over(ctx, t0, lambda t, y: y[6])]
+
+
+def _peel_rate(ctx, t, y) -> float:
+    return -sigma_of(y[1]) * ctx.p.r0 * (y[3] - y[2])
+
+
+def _peel_events(ctx, t0, y0):
+    def leave(t, y):            # the coil is out: pivoting about the root
+        return sigma_of(y0[1]) * y[1] - HALF_PI
+
+    def out(ctx, t, y):
+        y = y.copy()
+        y[1] = math.copysign(HALF_PI, y[1])
+        y[6], y[7] = ctx.p.H, 0.0
+        return Switch("pivoting", y)
+    holds = Event(lambda t, y: _pull(ctx, t, y) - y[7], -1.0,
+                  lambda c, t, y: Switch("stick", _on_tangent(c, y, y[6])))
+    stops = Event(lambda t, y: _peel_rate(ctx, t, y), -1.0, brake_fold)
+    return [holds, stops, Event(leave, -1.0, out)]
+
+
+def _peel_enter(ctx, t, y):
+    if _pull(ctx, t, y) < min(y[7], (1.0 - ctx.grip) * ctx.force(t)):
+        return Switch("stick", _on_tangent(ctx, y, y[6]))
+    return None
+
+
+def _brake_observe(regime):
+    def observe(ctx, t, y):
+        p, w = ctx.p, ctx.w
+        wd, _, _, M = REGIMES[regime].accel(ctx, t, y)
+        L, Ld = y[6], (y[7] if regime == "slip" else 0.0)
+        E, K = pay_mod.invariants(p, y[1], y[2], y[3], L, Ld, w)
+        N = _line(ctx, t, y, regime)
+        return E, K, N, L, pay_mod.tip_rate(p, y[1], y[2], y[3], L, Ld, w), M, N, Ld
+    return observe
+
+
+def _peel_observe(ctx, t, y):
+    return observe_free(ctx, t, y, "peel", held_tension=True, speed_rate=True)
+
+
+# -- the free regimes under a device ------------------------------------------------------
+
+def _coiled_events(ctx, t0, y0):
+    """The coiled regime's events and those a device adds: under a brake, the arm winding
+    off back to D (y[6] < H); under a reel, the free length reaching the law's (law below
+    H)."""
+    p, out = ctx.p, coiled_events(ctx, t0, y0)
+    if ctx.brake is not None and y0[6] < p.H:
+        out.append(Event(lambda t, y: wound_length(p, y[1]) - y[6], 1.0, brake_fold))
+    elif ctx.pay is not None and ctx.law_length(t0)[0] < p.H:
+        out.append(Event(lambda t, y: wound_length(p, y[1]) - ctx.law_length(t)[0], 1.0,
+                         reel_fold))
+    return out
+
+
+def _free_observe(regime):
+    """The free regimes' observables with a device's columns (tension at D, payout speed):
+    a reel pays its law out whatever the arm does below it, a brake holds a coiled arm."""
+    observe = REGIMES[regime].observe
+
+    def view(ctx, t, y):
+        out = observe(ctx, t, y)
+        if ctx.pay is not None:
+            return (*out[:6], 0.0, ctx.law_length(t)[1])
+        if ctx.brake is not None:
+            return (*out[:6], out[6] if regime == "coiled" else 0.0, 0.0)
+        return out
+    return view
+
+
+REGIMES.update({
+    "paying": Regime(_paying_accel, no_rate, _paying_events, _reel_observe("paying")),
+    "laid": Regime(_laid_accel, no_rate, _laid_events, _reel_observe("laid"), _laid_enter),
+    "stick": Regime(_stick_accel, no_rate, _stick_events, _brake_observe("stick"),
+                    _stick_enter),
+    "slip": Regime(_slip_accel, lambda ctx, t, y: y[7], _slip_events, _brake_observe("slip")),
+    "peel": Regime(coiled_accel, _peel_rate, _peel_events, _peel_observe, _peel_enter),
+})
+REGIMES.update({
+    "captured": REGIMES["captured"]._replace(events=captured_events, enter=_captured_enter,
+                                             observe=_free_observe("captured")),
+    "coiled": REGIMES["coiled"]._replace(events=_coiled_events,
+                                         observe=_free_observe("coiled")),
+    "pivoting": REGIMES["pivoting"]._replace(observe=_free_observe("pivoting")),
+})
