@@ -44,10 +44,15 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
         log.info("%s starts from its own rate at t = 0: initial.omega = %g is not used",
                  control.law.name, case.initial.omega)
     coiled = case.fold.pattern in COILED_FOLDS
-    return integrate(p, control, model=model, t_end=case.time.end,
-                     history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
-                     omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
-                     rtol=rtol, atol=atol, payout=payout, brake=brake)
+    res = integrate(p, control, model=model, t_end=case.time.end,
+                    history_dt=case.output.history_dt, coiled=coiled, wrap=case.fold.wrap,
+                    omega_init=case.initial.omega, spin=case.initial.spin, L0=L0,
+                    rtol=rtol, atol=atol, payout=payout, brake=brake)
+    eps_f = case.cable.failure_strain
+    if eps_f and case.scene == "tethers":  # a tether's strain: its root tension over E A
+        strain = res.history["max_tension"] / (case.cable.youngs_modulus * case.cable.area)
+        res.history.update(max_strain=strain, utilisation=strain / eps_f)
+    return res
 
 
 def devices_from_case(case) -> tuple:

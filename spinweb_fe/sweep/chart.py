@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe.errors import InputError
-from spinweb_fe.sweep.design import (BOUNDS, OBJECTIVES, Design, Evaluator, Point, _num, bisect,
+from spinweb_fe.sweep.design import (BOUNDS, METRICS, OBJECTIVES, Design, Evaluator, Point, _num, bisect,
                                      build_case, case_raw, check_cases, evaluate, judge_point,
                                      load_design, metrics_of)
 from spinweb_fe.sweep.run import flatten
@@ -396,8 +396,10 @@ def plot_design(d: Design, points, pairs, chosen, path):
     plt.close(fig)
 
 
-CHART_COLS = ("value", "least", "deploy_time", "peak_torque", "swing", "solves", "wall_s",
-              "fe_above", "fe_below", "note")
+#: the metrics at the least value (the registry's objectives), then the row's bookkeeping
+CHART_METRICS = tuple(k for k, m in METRICS.items() if m.objective)
+CHART_COLS = ("value", "least", *CHART_METRICS, "solves", "wall_s", "fe_above", "fe_below",
+              "note")
 
 
 def chart_table(d: Design, rows) -> list:
@@ -405,9 +407,9 @@ def chart_table(d: Design, rows) -> list:
     for r in rows:
         p = r["point"]
         m = p.metrics if p else {}
-        out.append([r["value"], r["least"], m.get("deploy_time", math.nan),
-                    m.get("peak_torque", math.nan), m.get("swing", math.nan), len(r["points"]),
-                    r["wall_s"], r["fe_above"].verdict() if r["fe_above"] else "",
+        out.append([r["value"], r["least"], *(m.get(k, math.nan) for k in CHART_METRICS),
+                    len(r["points"]), r["wall_s"],
+                    r["fe_above"].verdict() if r["fe_above"] else "",
                     r["fe_below"].verdict() if r["fe_below"] else "", r["note"]])
     return out
 

@@ -26,8 +26,10 @@ import numpy as np
 
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.control import LAWS
+from spinweb_fe.record import criteria as criteria_reg
+from spinweb_fe.record import metrics as metric_reg
 from spinweb_fe.record import verdict
-from spinweb_fe.record.verdict import CRITERIA
+from spinweb_fe.record.metrics import BOUNDS, METRICS, OBJECTIVES  # noqa: F401  (the registry)
 from spinweb_fe.sweep.run import _read_toml, apply, flatten
 
 log = logging.getLogger(__name__)
@@ -35,24 +37,6 @@ log = logging.getLogger(__name__)
 TOP_KEYS = ("title", "base", "law", "minimise", "require", "candidates", "refine",
             "refine_step", "scan", "rtol", "maxiter", "search", "set", "tie", "bounds", "fe",
             "chart")
-#: metric of a judged point -> (units, what it is); FE and analytic alike
-METRICS = {
-    "deploy_time": ("s", "the verdict's deployment time: every tip at deployed_fraction of "
-                         "its deployed distance from the axis, staying there"),
-    "peak_torque": ("N m", "largest |hub torque|"),
-    "peak_power": ("W", "largest |hub torque x hub rate|"),
-    "swing": ("rad", "in-plane swing of the arms after deployment"),
-    "max_tension": ("N", "largest arm (analytic) or cable (FE) tension"),
-    "brake_force": ("N", "largest line tension at the payout device (reel or brake)"),
-}
-#: objective -> (units, what is minimised)
-OBJECTIVES = {**METRICS,
-              "parameter": ("", "the searched value itself (one searched key): the least M0")}
-#: bound -> (units, what is limited from above)
-BOUNDS = {**{k: METRICS[k] for k in ("peak_torque", "peak_power", "brake_force",
-                                     "deploy_time", "max_tension")},
-          "strength": ("1", "true: no overstrain (utilisation <= 1; needs "
-                            "cable.failure_strain)")}
 BIG = 1e30  # the penalised score of an infeasible point: BIG (1 + its violation)
 
 
@@ -285,7 +269,8 @@ def load_design(path, chart: bool = False) -> Design:
     if require is not None:
         if not isinstance(require, list) or not require:
             raise InputError(src, "require", "must be a non-empty list of criteria")
-        require = tuple(_choice(src, "require", c, CRITERIA, "criterion") for c in require)
+        require = tuple(_choice(src, "require", c, criteria_reg.CRITERIA, "criterion")
+                        for c in require)
     d = Design(src, src.read_text(encoding="utf-8"), str(doc.get("title", "")), base, base_raw,
                law, search, sets, ties, fe_sets, bounds, minimise, require, **_options(src, doc))
     if not chart:  # a chart checks its cases with its values (sweep.chart.load_chart)
@@ -353,10 +338,12 @@ def check_cases(d: Design):
 
 def _margin(c) -> float:
     """A criterion's relative margin (>= 0 passed; infinite: passed, no number): a run that
-    did not complete -1, 'deployed' (a share, larger is better) value/limit - 1, every
-    other (and deploy_by) 1 - value/limit."""
-    if c.name == "completed" or not (math.isfinite(c.value) and math.isfinite(c.limit)
-                                     and c.limit > 0):
+    stopped early, the share of it not done (the analytical model leaving its validity is
+    a failure, the later the closer), 'deployed' (a share, larger is better) value/limit -
+    1, every other (and deploy_by) 1 - value/limit."""
+    if c.name == "completed":
+        m = math.inf if c.passed else (c.value - 1.0 if math.isfinite(c.value) else -1.0)
+    elif not (math.isfinite(c.value) and math.isfinite(c.limit) and c.limit > 0):
         m = math.inf if c.passed else -1.0
     elif c.name == "deployed" and c.units == "1":
         m = c.value / c.limit - 1.0
@@ -367,29 +354,15 @@ def _margin(c) -> float:
 
 def metrics_of(h: dict, crits, reach, hub_radius: float, fraction: float,
                ea_fail=None) -> dict:
-    """Design metrics of a run's history (FE or analytic) and verdict; ``reach`` (n,) [m]
-    the tips' deployed distances from the axis, ``fraction`` the verdict's deployed share
-    (the deployment time is the verdict's: out for good from then on)."""
-    by = {c.name: c for c in crits}
-    t = np.asarray(h["time"], float)
-    M, w = np.asarray(h["hub_torque"], float), np.asarray(h["hub_omega"], float)
-    dep = verdict.deploy_time(t, verdict.tip_radius(h, hub_radius), reach, fraction)
-    tension = float(np.max(h["max_tension"]))
-    sw, ov = by.get("swing"), by.get("overstrain")
-    util = ov.value if ov is not None and ov.passed is not None else (
-        tension / ea_fail if ea_fail else math.nan)
-    return {"deploy_time": dep if math.isfinite(dep) else math.inf,
-            "peak_torque": float(np.max(np.abs(M))), "peak_power": float(np.max(np.abs(M * w))),
-            "brake_force": float(np.max(h["brake_tension"])) if "brake_tension" in h else math.nan,
-            "max_tension": tension,
-            "swing": sw.value if sw is not None and sw.passed is not None else math.nan,
-            "strength": util}
+    """Design metrics of a run's history (FE or analytic) and verdict: the registry's
+    (record.metrics.compute)."""
+    return metric_reg.compute(h, crits, reach, hub_radius, fraction, ea_fail)
 
 
 def judge_point(d: Design, values, model, crits, metrics, **kw) -> Point:
     """Feasibility, margin, objective and failures of a point from its criteria and
     metrics (see the module's doc)."""
-    need = d.require or tuple(CRITERIA)
+    need = criteria_reg.required(d.require)
     margins, failed = [], []
     for c in crits:
         if c.name in need and c.passed is not None:

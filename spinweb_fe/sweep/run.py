@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from spinweb_fe.case.load import validate
+from spinweb_fe.record import metrics as metric_reg
 from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.sweep.draws import member_values
@@ -52,23 +53,19 @@ log = logging.getLogger(__name__)
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
 TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs", "members", "seed", "random")
-#: metric columns: (name, units, description)
+#: the summary's columns after the swept keys: (name, units, description); the metrics are
+#: the registry's (record/metrics.py), then the verdict's and the run's own
 METRICS = (
-    ("deploy_time_s", "s", "first time every tip is at least verdict.deployed_fraction of its "
-                           "deployed distance from the hub axis (NaN: never)"),
-    ("peak_hub_torque_Nm", "N m", "largest |hub_torque|"),
-    ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
-    ("max_tension_N", "N", "largest max_tension of the run"),
+    *((m.column, m.unit, m.measures) for m in metric_reg.METRICS.values()),
     ("recoiled", "1", "1 if the verdict's re-coil criterion fails (a tip fell back toward the "
                       "hub by more than verdict.recoil of its arm)"),
-    ("passed", "1", "1 if the run's verdict passes (every criterion that applies), else 0"),
+    ("passed", "1", "1 if the run's verdict passes (every required criterion that applies), "
+                    "else 0"),
     ("severity", "1", "the verdict's worst criterion against its limit (above 1: failed)"),
     ("wall_time_s", "s", "wall-clock time of the run (task)"),
 )
 #: metrics drawn in summary.png, with their axis labels
-PLOTTED = {"deploy_time_s": "time to full deployment [s]",
-           "peak_hub_torque_Nm": "peak |hub torque| [N m]",
-           "final_hub_omega_rad_s": "final hub rate [rad/s]", "max_tension_N": "max tension [N]"}
+PLOTTED = {m.column: m.plot for m in metric_reg.METRICS.values() if m.plot}
 
 
 @dataclass(frozen=True)
@@ -266,30 +263,13 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
                  src.read_text(encoding="utf-8"), tuple(grid), members, seed, draws)
 
 
-def history_metrics(h: dict, reach, hub_radius: float,
-                    fraction: float = verdict.DEFAULTS["deployed_fraction"]) -> dict:
-    """Metrics of one run from its ``/history`` (see METRICS and docs/sweep.md); the
-    verdict's columns (passed, severity, recoiled) come from its criteria.
-
-    Parameters
-    ----------
-    h : dict
-        ``time (T,)``, ``tip_position (T, n, 3)`` (FE) or ``arm_length`` and
-        ``arm_angle (T, n)`` (analytical), ``hub_torque``, ``hub_omega``, ``max_tension``.
-    reach : float or (n,) [m]
-        Each deployed tip's distance from the hub axis (record.verdict.reach_of; analytic:
-        r0 + H).
-    fraction : float
-        The deployed share of the reach (the case's verdict.deployed_fraction).
-    """
-    t = np.asarray(h["time"])
-    radius = verdict.tip_radius(h, hub_radius)
-    full = np.all(radius >= fraction * np.asarray(reach), axis=1)
-    t_dep = float(t[int(np.argmax(full))]) if full.any() else math.nan
-    return {"deploy_time_s": t_dep,
-            "peak_hub_torque_Nm": float(np.max(np.abs(h["hub_torque"]))),
-            "final_hub_omega_rad_s": float(h["hub_omega"][-1]),
-            "max_tension_N": float(np.max(h["max_tension"]))}
+def history_metrics(h: dict, crits, reach, hub_radius: float,
+                    fraction: float = verdict.DEFAULTS["deployed_fraction"],
+                    ea_fail: float | None = None) -> dict:
+    """The summary's metric columns of one run (record.metrics.compute of its ``/history``
+    and criteria, by column name; docs/sweep.md)."""
+    return metric_reg.columns(metric_reg.compute(h, crits, reach, hub_radius, fraction,
+                                                 ea_fail))
 
 
 def fe_metrics(path) -> tuple:
@@ -310,13 +290,13 @@ def fe_metrics(path) -> tuple:
         mesh = read_mesh_group(h5["mesh"])
         case = tomllib.loads(str(h5.attrs.get("case", "")))
         keys = ("time", "tip_position", "hub_position", "hub_axis", "hub_torque", "hub_omega",
-                "max_tension")
+                "max_tension", "brake_tension")
         h = {k: h5["history"][k][()] for k in keys if k in h5["history"]}
         crits = verdict.read_group(h5)
     if crits is None:
         raise RunError(f"{path} has no verdict (the run could not be judged: see run.log)")
     frac = verdict.limits_of(case.get("verdict"))["deployed_fraction"]
-    return history_metrics(h, verdict.reach_of(mesh), mesh.hub_radius, frac), crits
+    return history_metrics(h, crits, verdict.reach_of(mesh), mesh.hub_radius, frac), crits
 
 
 def run_one(task: dict) -> dict:
@@ -348,12 +328,11 @@ def run_one(task: dict) -> dict:
 
             res = analytic.solve_case(case, model=task["model"])
             analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
-            if res.stopped:
-                raise RunError(res.stopped, time=float(res.history["time"][-1]))
-            p = res.params
-            metrics = history_metrics(res.history, p.r0 + p.H, p.r0,
-                                      verdict.limits_of(case.verdict)["deployed_fraction"])
+            p = res.params  # a model that stopped (its validity) fails 'completed'
+
             crits = analytic.judge(case, res)
+            metrics = history_metrics(res.history, crits, p.r0 + p.H, p.r0,
+                                      verdict.limits_of(case.verdict)["deployed_fraction"])
         recoil = next(c for c in crits if c.name == "recoil")
         metrics.update(recoiled=float(recoil.passed is False),
                        passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
