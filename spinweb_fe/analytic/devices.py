@@ -9,23 +9,26 @@ The reel (:class:`~spinweb_fe.analytic.payout.Payout`, the free length prescribe
 - ``coiled`` (of :mod:`~spinweb_fe.analytic.regimes`): the free length is below the law's
   (the line leaves the coil ahead of D, or wraps back over the hub beyond it).
 
-The brake (:class:`~spinweb_fe.analytic.payout.Brake`, the line's tension at D limited to
-F(t)):
+The brake (:class:`~spinweb_fe.analytic.payout.Brake`, a force F(t) against the line's
+slip through D):
 
-- ``stick``: the brake holds, the arm pivots about D (L' = 0);
-- ``slip``: the line runs through D at tension F (L a state);
-- ``peel``: at its coil's tangent the line leaves D without passing the brake (its slip
-  L' (1 + w sin beta) vanishes there), pulled harder than F: the coil pays out as the free
-  coil does, D moving with its departure point;
+- ``stick``: the brake holds, the arm pivots about D (L' = 0); it slips when the line's
+  tension at D reaches F;
+- ``slip``: the line runs through D against F (L a state; Lagrange's equation of the
+  free length, whose power balance is the brake's -F L' (1 + w sin beta));
+- ``peel``: at its coil's tangent, pulling at least F, the line leaves D along the coil
+  without passing the brake (its slip L' (1 + w sin beta) vanishes there): the coil pays
+  out as the free coil does, D moving with its departure point, until it stops unwinding
+  or pulls ``GRIP`` less than F (then the brake holds it again);
 - ``coiled``: the arm wraps back over the hub beyond D, which stays.
 
 Near the tangent the slip's equations are singular (the line's inertia along itself,
-m_f (1 + w sin beta), vanishes, and L' grows as eps^-1/2, eps the angle from the tangent):
-a slipping arm that comes within ``Ctx.band`` of its tangent is put on it (rotated about D
-by at most ``band``, K and E kept exactly), and a peel goes back to stick only when the
-line's pull falls ``Ctx.grip`` below the force (no switching without time passing). Both
-errors are measured in docs/analytic.md 4c. An arm that swings over its held coil (beta
-past the other tangent) leaves the model's validity: it stops there and says so.
+m_f (1 + w sin beta), vanishes: D runs back along the coil, L' growing as 1/eps, eps the
+angle from the tangent, while no material moves fast): a slipping arm that comes within
+``Ctx.band`` of its tangent is put on it (rotated about D by at most ``band``, K and E kept
+exactly), and a sticking arm whose line reaches F within twice the band peels instead.
+docs/analytic.md 4c measures the band's error. An arm that swings over its held coil
+(beta past the other tangent) leaves the model's validity: it stops there and says so.
 """
 
 from __future__ import annotations
@@ -36,9 +39,12 @@ import numpy as np
 
 from spinweb_fe.analytic import payout as pay_mod
 from spinweb_fe.analytic.models import HALF_PI, root_tension, solve_rows
+
+#: the peel ends when the line pulls this share below the brake's force (hysteresis)
+GRIP = 1e-3
 from spinweb_fe.analytic.regimes import (REGIMES, Event, Regime, Switch, coiled_accel,
                                          coiled_events, no_rate, observe_free, release,
-                                         sigma_of, unwinding, wound_length)
+                                         sigma_of, wound_length)
 
 
 def _gap(ctx, y, L) -> float:
@@ -267,24 +273,30 @@ def _pull(ctx, t, y) -> float:
 
 
 def _to_peel(ctx, t, y):
-    """Peel from a state on the tangent; y[7] (unused while peeling) keeps the pull at which
-    the brake grips again: ``grip`` below the smaller of the force and the pull now (so
-    that the peel lasts, where a sticking arm within the band asks F and the peel less)."""
+    """Peel from a state on the tangent; y[7] (unused while peeling) keeps the pull below
+    which the brake holds the line again: ``GRIP`` below the smaller of the force and the
+    pull now (a sticking arm within the band can ask F where the peel asks a little less:
+    without the margin the two would hand over at once, again and again)."""
     y = y.copy()
-    y[7] = (1.0 - ctx.grip) * min(ctx.force(t), _pull(ctx, t, y))
+    y[7] = (1.0 - GRIP) * min(ctx.force(t), _pull(ctx, t, y))
     return Switch("peel", y)
 
 
 def brake_fold(ctx, t, y):
-    """The regime of an arm at its coil's tangent at D (L = y[6]): if it unwinds and asks
-    the brake at least its force, it peels off (the line leaves D along the coil, without
-    passing the brake: the free coil's course), if it unwinds asking less, the brake holds
-    it (stick: the arm swings off its coil); if it winds back, it wraps over the hub beyond
-    D (coiled)."""
+    """The regime of an arm at its coil's tangent at D (L = y[6]). About to unwind (moving,
+    or at rest with the accelerations unwinding it), it peels off if it pulls at least the
+    brake's force: the line leaves D along the coil, where its slip through the brake,
+    L' (1 + w sin beta), vanishes; pulling less, the brake holds it (stick: the arm swings
+    off its coil). Winding back, it wraps over the hub beyond D (coiled)."""
     y = _on_tangent(ctx, y, y[6])
-    if unwinding(ctx, t, y) > 0.0:
-        return _to_peel(ctx, t, y) if _pull(ctx, t, y) >= ctx.force(t) else Switch("stick", y)
-    return Switch("coiled", y)
+    s = -sigma_of(y[1])
+    r = s * (y[3] - y[2])
+    if abs(r) <= 1e-12 * max(abs(y[2]), 1.0):  # at rest: what the accelerations do
+        wd, pd, _, _ = coiled_accel(ctx, t, y)
+        r = s * (pd - wd)
+    if r <= 0.0:
+        return Switch("coiled", y)
+    return _to_peel(ctx, t, y) if _pull(ctx, t, y) >= ctx.force(t) else Switch("stick", y)
 
 
 def _slips(ctx, t, y):
@@ -295,10 +307,14 @@ def _slips(ctx, t, y):
         y = y.copy()
         y[7] = 0.0
         return Switch("slip", y)
-    y = to_tangent(ctx, y)
-    if unwinding(ctx, t, y) > 0.0:
-        return _to_peel(ctx, t, y)
-    return Switch("coiled", y)
+    return _band_fold(ctx, t, y)
+
+
+def _band_fold(ctx, t, y):
+    """An arm within the band of its tangent whose line holds F: put on the tangent
+    (:func:`to_tangent`), it peels if it unwinds (it pulls F), else wraps back."""
+    sw = brake_fold(ctx, t, to_tangent(ctx, y))
+    return _to_peel(ctx, t, sw.y) if sw.regime == "stick" else sw
 
 
 def _stick_events(ctx, t0, y0):
@@ -318,8 +334,8 @@ def _slip_events(ctx, t0, y0):
         y[7] = 0.0
         return Switch("stick", y)
 
-    def arrest(ctx, t, y):
-        return brake_fold(ctx, t, to_tangent(ctx, y))
+    def arrest(ctx, t, y):  # within the band of its tangent, at F: it peels if it unwinds
+        return _band_fold(ctx, t, y)
 
     def full(ctx, t, y):
         y = y.copy()
@@ -351,7 +367,7 @@ def _peel_events(ctx, t0, y0):
 
 
 def _peel_enter(ctx, t, y):
-    if _pull(ctx, t, y) < min(y[7], (1.0 - ctx.grip) * ctx.force(t)):
+    if _pull(ctx, t, y) < min(y[7], (1.0 - GRIP) * ctx.force(t)):
         return Switch("stick", _on_tangent(ctx, y, y[6]))
     return None
 

@@ -25,8 +25,8 @@ L0_FRACTION = 1e-4
 MAX_SEGMENTS = 20_000
 #: switches without time passing before the model gives up (never seen: a guard)
 MAX_STILL = 50
-#: the brake's tangent band [rad] and re-grip margin (docs/analytic.md 4c)
-BAND, GRIP = 1e-4, 1e-3
+#: the brake's tangent band [rad] (docs/analytic.md 4c)
+BAND = 1e-4
 
 
 @dataclass
@@ -124,8 +124,7 @@ def integrate(p: ArmParams, control, *, model: str = "consistent", t_end: float,
               history_dt: float, coiled: bool = True, wrap: str = "trailing",
               omega_init: float = 8 * math.pi, spin: str = "all", L0: float | None = None,
               rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853",
-              payout=None, brake=None, band: float | None = None,
-              grip: float | None = None) -> AnalyticResult:
+              payout=None, brake=None, band: float | None = None) -> AnalyticResult:
     """Integrate the model from t = 0 to ``t_end`` and sample the history.
 
     The regimes (docs/analytic.md): ``pivoting`` (|phi| <= pi/2, L = H), ``coiled``
@@ -158,9 +157,8 @@ def integrate(p: ArmParams, control, *, model: str = "consistent", t_end: float,
     brake : Brake or None
         A brake at D (consistent model only; not with a payout). With a reel or a brake the
         history gains the device's ``brake_work``, ``brake_tension`` and ``payout_speed``.
-    band, grip : float, optional
-        The brake's tangent band [rad] and re-grip margin (default ``BAND``, ``GRIP``;
-        docs/analytic.md 4c).
+    band : float, optional
+        The brake's tangent band [rad] (default ``BAND``; docs/analytic.md 4c).
 
     Returns
     -------
@@ -175,7 +173,7 @@ def integrate(p: ArmParams, control, *, model: str = "consistent", t_end: float,
                                              model)
     L_start = p.H - p.r0 * max(0.0, abs(phi0) - HALF_PI)
     ctx = Ctx(model, p, control, w, payout, brake, 0.5 * L_start,
-              BAND if band is None else band, GRIP if grip is None else grip)
+              BAND if band is None else band)
     prescribed = control.law.prescribes_rate
     E_init = 0.5 * (p.J_hub if spin == "hub" and coiled and not prescribed
                     else 0.0) * omega_init ** 2

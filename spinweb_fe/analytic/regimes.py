@@ -30,8 +30,8 @@ Observed = tuple
 class Ctx:
     """What every regime needs: the model, its parameters and control law, the wrap
     (w = +1 trailing, -1 leading), the devices (a reel's ``pay`` or a ``brake``, or
-    neither), the capture length, and the brake's two regularisations (docs/analytic.md
-    4c): the tangent band ``band`` [rad] and the re-grip margin ``grip``."""
+    neither), the capture length, and the brake's regularisation (docs/analytic.md 4c):
+    the tangent band ``band`` [rad]."""
 
     model: str
     p: ArmParams
@@ -41,7 +41,6 @@ class Ctx:
     brake: object = None
     L_min: float = 0.0
     band: float = 1e-4
-    grip: float = 1e-3
 
     def law(self, t: float, omega: float):
         """(torque [N m] or None, omega' [rad/s^2] or None) of the control law at t."""
