@@ -60,7 +60,9 @@ def run(args) -> int:
         return 0
     if args.scheduler and args.workers != 2:
         log.warning("--workers is ignored with --scheduler (the cluster has its own workers)")
-    rows = sw.execute(spec, out, scheduler=args.scheduler, workers=args.workers,
+    from spinweb_fe.sweep.cluster import execute
+
+    rows = execute(spec, out, scheduler=args.scheduler, workers=args.workers,
                       progress=not args.no_progress)
     paths = sweep_report.write_summary(spec, rows, out)
     cols, data = sweep_report.table(spec, rows)

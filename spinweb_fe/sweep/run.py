@@ -25,7 +25,6 @@ metrics (:func:`history_metrics`); a failing run is recorded with its error in
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import difflib
 import itertools
@@ -39,7 +38,6 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from spinweb_fe.case.load import validate
 from spinweb_fe.record import metrics as metric_reg
@@ -112,17 +110,33 @@ def flatten(table: dict, prefix: str = "") -> dict:
 
 
 def apply(raw: dict, overrides: dict, src, where) -> dict:
-    """A deep copy of the case dict ``raw`` with dotted ``overrides`` set."""
+    """A deep copy of the case dict ``raw`` with dotted ``overrides`` set; a number among
+    the parts indexes a list (``stowage.brake_force_table.1.1``: the second point's
+    force)."""
     raw = copy.deepcopy(raw)
     for dotted, value in overrides.items():
         node = raw
         parts = dotted.split(".")
         for p in parts[:-1]:
+            if isinstance(node, list):
+                node = _item(node, p, src, f"{where}.{dotted}")
+                continue
             node = node.setdefault(p, {})
-            if not isinstance(node, dict):
+            if not isinstance(node, (dict, list)):
                 raise InputError(src, f"{where}.{dotted}", f"'{p}' is not a table of the case")
-        node[parts[-1]] = value
+        if isinstance(node, list):
+            _item(node, parts[-1], src, f"{where}.{dotted}")
+            node[int(parts[-1])] = value
+        else:
+            node[parts[-1]] = value
     return raw
+
+
+def _item(node: list, part: str, src, key):
+    """``node[int(part)]``, or InputError when ``part`` is no index of it."""
+    if not part.isdigit() or int(part) >= len(node):
+        raise InputError(src, key, f"'{part}' is not an index of a list of {len(node)}")
+    return node[int(part)]
 
 
 def _clean(text: str, width: int = 48) -> str:
@@ -348,100 +362,3 @@ def run_one(task: dict) -> dict:
         handler.close()
         spin_log.propagate, spin_log.level = saved
     return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
-
-
-def _failed(exc) -> dict:
-    row = {name: math.nan for name, _, _ in METRICS}
-    row["failed"] = "run failed"
-    row["status"] = f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
-    return row
-
-
-def execute(sweep: Sweep, out_dir, scheduler=None, workers=2, progress=True) -> list:
-    """Run every case of ``sweep`` on Dask; return one row dict per run (index order).
-
-    Parameters
-    ----------
-    out_dir : Path
-        Sweep folder; run ``i`` writes ``out_dir/runs/<name>/``. With ``scheduler`` it must
-        be on a file system that the workers share.
-    scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://host:8786``); default: a LocalCluster
-        of ``workers`` processes with one thread each.
-    """
-    with dask_client(scheduler, workers) as client:
-        return _execute(sweep, Path(out_dir).resolve(), client, scheduler, workers, progress)
-
-
-@contextlib.contextmanager
-def _quiet_dask():
-    """Dask's own log lines (nanny, scheduler, comms) off while the sweep runs: a lost
-    worker shows as a failed run in the summary."""
-    import distributed  # noqa: F401  (creates its loggers)
-
-    names = ["distributed", *(n for n in logging.root.manager.loggerDict
-                              if n.startswith("distributed."))]
-    saved = {n: logging.getLogger(n).level for n in names}
-    for n in names:
-        logging.getLogger(n).setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        for n, level in saved.items():
-            logging.getLogger(n).setLevel(level)
-
-
-@contextlib.contextmanager
-def dask_client(scheduler=None, workers=2):
-    """A Dask client (the sweep's and the design's): a running scheduler's, or a
-    LocalCluster of ``workers`` processes with one thread each; Dask's log lines silenced;
-    client and cluster closed at the end. RunError if the cluster cannot be started or
-    reached."""
-    from dask.distributed import Client, LocalCluster
-
-    with _quiet_dask():
-        cluster = None
-        try:
-            if scheduler:
-                client = Client(scheduler, timeout="10s")
-            else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                       processes=True, dashboard_address=":0",
-                                       silence_logs=logging.WARNING)
-                client = Client(cluster)
-        except (OSError, TimeoutError) as exc:
-            if cluster is not None:
-                cluster.close()
-            raise RunError(f"cannot start or reach the Dask cluster "
-                           f"{scheduler or '(local)'}: {exc}") from None
-        try:
-            yield client
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-
-
-def _execute(sweep, out_dir, client, scheduler, workers, progress):
-    from dask.distributed import as_completed
-
-    rows = [None] * len(sweep.runs)
-    log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
-             scheduler or f"a local Dask cluster of {workers} worker process(es)")
-    futures = {}
-    for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
-        task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
-                "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
-        fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
-        futures[fut] = pos
-    for done, fut in enumerate(as_completed(futures), start=1):
-        i = futures[fut]
-        try:
-            rows[i] = fut.result()
-        except Exception as exc:  # the worker died or the task was lost
-            rows[i] = _failed(exc)
-        if progress:
-            log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
-                     rows[i]["status"], rows[i].get("wall_time_s", math.nan))
-    return rows
-
