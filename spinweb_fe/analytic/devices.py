@@ -89,6 +89,22 @@ def to_tangent(ctx, y):
     return y
 
 
+def stop_line(ctx, y, Ld):
+    """The line runs out to its end (L = H at the speed ``Ld``) and stops: an impact at the
+    root, whose impulse keeps the total angular momentum and the arm's moment of momentum
+    about the root; the kinetic energy it takes is the device's (its work)."""
+    p, w = ctx.p, ctx.w
+    _, K = pay_mod.invariants(p, y[1], y[2], y[3], p.H, Ld, w)
+    _, S, I = p.moments(p.H)
+    cb = math.cos(y[1])
+    h = p.r0 * S * cb * (y[2] + w * Ld / p.r0) + I * y[3]
+    A = np.array([[p.J0 + p.n * p.r0 * S * cb, p.n * (p.r0 * S * cb + I)], [p.r0 * S * cb, I]])
+    y = y.copy()
+    y[2], y[3] = np.linalg.solve(A, [K, h])
+    y[6], y[7] = p.H, 0.0
+    return y
+
+
 # -- captured -----------------------------------------------------------------------------
 
 def captured_events(ctx, t0, y0):
@@ -103,10 +119,11 @@ def captured_events(ctx, t0, y0):
 
 
 def on_release(ctx, t, y):
-    """The captured arm starts to unwind."""
-    if ctx.brake is not None:
+    """The captured arm starts to unwind (under a device that has not paid everything
+    out; after that, and coiled the other way, it is the free model's)."""
+    if ctx.brake is not None and y[6] < ctx.p.H:
         return brake_fold(ctx, t, y)
-    if ctx.pay is not None:
+    if ctx.pay is not None and ctx.law_length(t)[0] < ctx.p.H:
         L, Lc = ctx.law_length(t)[0], wound_length(ctx.p, y[1])
         if L < Lc * (1.0 - 1e-9):
             return Switch("captured", y)        # waits for its law
@@ -176,6 +193,7 @@ def reel_fold(ctx, t, y):
     y = _on_tangent(ctx, y, L)
     y[6] = p.H
     bp = -sigma_of(y[1]) * (y[3] - y[2]) - Ld / p.r0   # w beta' of the paying arm
+    y[7] = Ld  # the law's speed in force (a jump in it is an impact: _reel_enter)
     if abs(bp) > 1e-9 * max(abs(y[2]), Ld / p.r0, 1e-300):
         return Switch("paying" if bp > 0 else "coiled", y)
     if _lifts(ctx, t, y) > 0.0:
@@ -184,6 +202,31 @@ def reel_fold(ctx, t, y):
         return Switch("coiled", y)
     y[3] = y[2] + ctx.w * Ld / p.r0
     return Switch("laid", y)
+
+
+def _jerk(ctx, y, L, Ld_old, Ld_new):
+    """The reel's speed jumps from Ld_old to Ld_new (a corner of its law): an impulse at D
+    that keeps the total angular momentum and the free part's moment of momentum about D
+    (y[7] keeps the speed in force)."""
+    p, w, n = ctx.p, ctx.w, ctx.p.n
+    m_f, S, I = p.moments(L)
+    beta = y[1] + w * (p.H - L) / p.r0
+    cb, opw = math.cos(beta), pay_mod.one_plus(p, y[1], L, w)
+    _, K = pay_mod.invariants(p, y[1], y[2], y[3], L, Ld_old, w)
+    h = p.r0 * S * cb * (y[2] + w * Ld_old / p.r0) + I * y[3]
+    A = np.array([[p.J0 + n * p.r0 * S * cb, n * (p.r0 * S * cb + I)], [p.r0 * S * cb, I]])
+    rhs = [K - n * Ld_new * w * (p.r0 * m_f * opw + S * cb), h - S * cb * w * Ld_new]
+    y = y.copy()
+    y[2], y[3] = np.linalg.solve(A, rhs)
+    y[7] = Ld_new
+    return y
+
+
+def _paying_enter(ctx, t, y):
+    L, Ld = ctx.law_length(t)
+    if Ld != y[7] and L < ctx.p.H:
+        return Switch("paying", _jerk(ctx, y, L, y[7], Ld))
+    return None
 
 
 def _law_L(ctx):
@@ -196,9 +239,7 @@ def _full(ctx):
         return ctx.law_length(t)[0] - ctx.p.H * (1.0 - 1e-12)
 
     def then(ctx, t, y):
-        y = y.copy()
-        y[6], y[7] = ctx.p.H, 0.0
-        return Switch("pivoting", y)
+        return Switch("pivoting", stop_line(ctx, y, ctx.law_length(t - 1e-12)[1]))
     return Event(fn, 1.0, then)
 
 
@@ -227,8 +268,11 @@ def _reel_observe(regime):
 
 
 def _laid_enter(ctx, t, y):
+    L, Ld = ctx.law_length(t)
+    if Ld != y[7] and L < ctx.p.H:
+        y = _jerk(ctx, y, L, y[7], Ld)
     sw = reel_fold(ctx, t, y)
-    return None if sw.regime == "laid" else sw
+    return None if sw.regime == "laid" and Ld == y[7] else sw
 
 
 # -- the brake ----------------------------------------------------------------------------
@@ -338,9 +382,7 @@ def _slip_events(ctx, t0, y0):
         return _band_fold(ctx, t, y)
 
     def full(ctx, t, y):
-        y = y.copy()
-        y[6], y[7] = ctx.p.H, 0.0
-        return Switch("pivoting", y)
+        return Switch("pivoting", stop_line(ctx, y, y[7]))
     return [Event(lambda t, y: y[7], -1.0, stops),
             Event(lambda t, y: _gap(ctx, y, y[6]) - ctx.band, -1.0, arrest),
             Event(lambda t, y: y[6] - ctx.p.H, 1.0, full),
@@ -418,7 +460,8 @@ def _free_observe(regime):
 
 
 REGIMES.update({
-    "paying": Regime(_paying_accel, no_rate, _paying_events, _reel_observe("paying")),
+    "paying": Regime(_paying_accel, no_rate, _paying_events, _reel_observe("paying"),
+                     _paying_enter),
     "laid": Regime(_laid_accel, no_rate, _laid_events, _reel_observe("laid"), _laid_enter),
     "stick": Regime(_stick_accel, no_rate, _stick_events, _brake_observe("stick"),
                     _stick_enter),

@@ -78,8 +78,8 @@ def start_state(p: ArmParams, control, coiled: bool, wrap: str, omega_init: floa
 
 
 def _full(ctx, y):
-    """The state with (L_D, L') = (H, 0) appended where only a brake integrates them (the
-    error norm of solve_ivp averages over the integrated components: without a brake the
+    """The state with (L_D, L') = (H, 0) appended where only a device integrates them (the
+    error norm of solve_ivp averages over the integrated components: without a device the
     six of the free model are integrated alone, as before the devices)."""
     return y if len(y) == 8 else np.concatenate([y, (ctx.p.H, 0.0)])
 
@@ -190,7 +190,7 @@ def integrate(p: ArmParams, control, *, model: str = "consistent", t_end: float,
     stops = sorted(set([b for b in breaks if b < t_end]
                        + (payout.breaks(t_end) if payout else [])
                        + (brake.breaks(t_end) if brake else []) + [t_end]))
-    size = 8 if brake is not None else 6
+    size = 8 if brake is not None or payout is not None else 6
     t, segments, switches, stopped, lost, still = 0.0, [], [], "", 0.0, 0
     while t < t_end and not stopped:
         if len(segments) > MAX_SEGMENTS:
