@@ -112,7 +112,7 @@ def captured_events(ctx, t0, y0):
     the law lets its free length out."""
     out = [] if release(ctx, t0, y0) > 0.0 else [  # (unwinding already: waits for its law)
         Event(lambda t, y: release(ctx, t, y), 1.0, on_release)]
-    if ctx.pay is not None:
+    if ctx.pay is not None and ctx.law_length(t0)[0] < wound_length(ctx.p, y0[1]):
         out.append(Event(lambda t, y: ctx.law_length(t)[0] - wound_length(ctx.p, y[1]), 1.0,
                          on_allowed))
     return out

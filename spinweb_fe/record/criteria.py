@@ -42,43 +42,56 @@ class CriterionDef:
     limit: str | None
     applies: str
     required: bool = True
+    fails: str = ""   # how a failure reads for a designer (design's "why no design")
 
 
 CRITERIA = {c.name: c for c in (
     CriterionDef("completed", "the run reached its end time",
                  "the run reached `time.end` (analytical: the model did not stop, e.g. where "
                  "an arm swings over its held coil); value: the share of the run done",
-                 "1", None, "all"),
+                 "1", None, "all",
+                 fails="the analytical model leaves its validity (an arm swings over its held coil)"),
     CriterionDef("deployed", "every arm at its deployed length, and staying there",
                  "every tip is at least `deployed_fraction` of its deployed distance from "
                  "the hub axis from some time on, to the end (by `deploy_by` [s] if given)",
-                 "1", "deployed_fraction", "all"),
+                 "1", "deployed_fraction", "all",
+                 fails="the arms are not out for good"),
     CriterionDef("recoil", "no tip fell back toward the hub (re-coil)",
                  "no tip falls back toward the hub from its farthest by more than `recoil` "
-                 "of its arm's deployed length", "1", "recoil", "all"),
+                 "of its arm's deployed length", "1", "recoil", "all",
+                 fails="a tip falls back toward the hub (re-coil)"),
     CriterionDef("slack", "share of the cable elements without tension at the end",
-                 "at most `slack_share` of the cable elements carry no tension at the end",
-                 "1", "slack_share", "FE"),
+                 "at most `slack_share` of the cable elements carry no tension at the end "
+                 "(not required by default: it says where the run ended, a web still in its "
+                 "second stage or a tether still on its reel, more than whether it deploys)",
+                 "1", "slack_share", "FE", required=False,
+                 fails="the web stays gathered (slack)"),
     CriterionDef("overstrain", "no element beyond its failure strain",
                  "the utilisation (strain / `cable.failure_strain`) stays at most 1 "
                  "(docs/strength.md)", "1", None,
-                 "FE, and analytical tethers, with a failure strain"),
+                 "FE, and analytical tethers, with a failure strain",
+                 fails="a cable strains beyond its failure strain"),
     CriterionDef("swing", "in-plane swing of the arms after deployment",
                  "half the range of every arm's phi over the second half of the time after "
-                 "deployment is at most `swing`", "rad", "swing", "deployed runs"),
+                 "deployment is at most `swing`", "rad", "swing", "deployed runs",
+                 fails="the arms keep swinging"),
     CriterionDef("flatness", "out-of-plane distance of the web at the end",
                  "the web's largest distance from the hub plane at the end is at most "
                  "`flatness` of the deployed arm length", "1", "flatness",
-                 "FE runs that can leave the plane"),
+                 "FE runs that can leave the plane",
+                 fails="the web leaves its plane"),
     CriterionDef("energy", "energy balance of the run",
                  "the energy balance closes within `energy` of the run's energy scale "
-                 "(docs/results.md)", "1", "energy", "all"),
+                 "(docs/results.md)", "1", "energy", "all",
+                 fails="the energy audit fails"),
     CriterionDef("momentum", "angular momentum balance about the spin axis",
                  "K - K0 - the control torque's impulse about the spin axis stays within "
-                 "`momentum` of max abs(K)", "1", "momentum", "all but the gravity gradient"),
+                 "`momentum` of max abs(K)", "1", "momentum", "all but the gravity gradient",
+                 fails="the momentum audit fails"),
     CriterionDef("tangled", "cable elements that passed through each other (the crossing "
                  "audit)", "at most `crossings` crossings of cable elements", "1", "crossings",
-                 "FE with audit.crossings"),
+                 "FE with audit.crossings",
+                 fails="cables cross"),
 )}
 
 #: the ``[verdict]`` table: every limit a criterion names, and the keys that qualify them

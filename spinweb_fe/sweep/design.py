@@ -239,21 +239,11 @@ def search(d: Design, ev: Evaluator) -> list:
     return ev.points
 
 
-#: a failed criterion or bound, as a designer reads it
-WHY = {"completed": "the analytical model leaves its validity (an arm swings over its "
-                    "held coil)",
-       "deployed": "the arms are not out for good", "recoil": "a tip falls back toward the "
-       "hub (re-coil)", "slack": "the web stays gathered (slack)", "overstrain": "a cable "
-       "strains beyond its failure strain", "swing": "the arms keep swinging",
-       "flatness": "the web leaves its plane", "energy": "the energy audit fails",
-       "momentum": "the momentum audit fails", "tangled": "cables cross", "error": "the "
-       "model fails"}
-
-
 def _why(p: Point) -> str:
     parts = []
     for f in p.failed:
-        text = WHY.get(f, f"{f} above its bound")
+        c = criteria_reg.CRITERIA.get(f)
+        text = c.fails if c else ("the model fails" if f == "error" else f"{f} above its bound")
         if f == "deployed" and math.isfinite(p.metrics.get("deploy_share", math.nan)):
             text += f" (tips at {p.metrics['deploy_share']:.2g} of their reach)"
         parts.append(text)
