@@ -52,6 +52,12 @@ def compare(cs, tag):
                fe_speed_max_mps=float(np.abs(fe["payout_speed"]).max()),
                an_L_end_m=float(a["arm_length"][-1, 0]), fe_L_end_m=float(f["arm_length"][-1, 0]),
                balance_fe_over_KE0=vp.balance(fe))
+    first = next((sw[0] for sw in res.switches if sw[2] in ("peel", "coiled", "laid")
+                  and sw[0] > 1e-3), None)  # the brake's first return to the coil's tangent
+    if first is not None and np.sum(sel & (t <= first)) > 5:
+        win = sel & (t <= first)
+        rec["to_tangent"] = dict(vp.norms(f, a, win, H, omega0),
+                                 work=vp.work(f, a, int(np.flatnonzero(win)[-1])))
     i = len(t) - 1
     w = vp.work(f, a, i)
     rec["work"] = w if abs(w["an_J"]) > 1e-6 * f["kinetic_energy"][0] else {
@@ -95,6 +101,13 @@ def tables(data):
               "analytical | analytical end |")
         print("|---|---|---|---|---|---|---|")
         for name, r in runs.items():
+            if "to_tangent" in r and key.startswith("brake"):
+                q = r["to_tangent"]
+                print(f"| {name}, to the first tangent | {q['window_s'][0]:.3f}-"
+                      f"{q['window_s'][1]:.3f} | {100 * q['L_rms_over_H']:.2g} % | "
+                      f"{q['phi_rms_rad']:.2g} | {100 * q['hub_rms_over_omega0']:.2g} % | "
+                      f"{q['work']['fe_J'] / 1e3:.4g} / {q['work']['an_J'] / 1e3:.4g} kJ "
+                      f"({100 * q['work']['rel']:.2g} %) | |")
             w = r["work"]
             ws = "-" if w["rel"] is None else (f"{w['fe_J'] / 1e3:.4g} / {w['an_J'] / 1e3:.4g} kJ"
                                                f" ({100 * w['rel']:.2g} %)")

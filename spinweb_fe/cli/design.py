@@ -122,9 +122,12 @@ def run(args) -> int:
             t2 = time.perf_counter()
             with Stage("FE Monte-Carlo", d.members * n_ok, show) as mc:
                 robust = vf.verify_members(d, client, pairs, out, mc, warmed)
+            with Stage("FE robust refinement", None, show) as rr:
+                rounds = vf.robust_refine(d, client, pairs, robust, points, out, rr, warmed)
             timing["members"] = time.perf_counter() - t2
-            ran.append(f"FE Monte-Carlo {mc.done} members of {n_ok} FE-passing point(s) in "
-                       f"{timing['members']:.1f} s")
+            ran.append(f"FE Monte-Carlo {mc.done} members of {n_ok} FE-passing point(s)"
+                       + (f", robust refinement {rounds} step(s) ({rr.done} runs)"
+                          if rounds else "") + f" in {timing['members']:.1f} s")
     timing["total"] = time.perf_counter() - t0
     chosen, rec, met = vf.choose(pairs, robust, d.pass_rate)
     info.update(robust=robust, chosen_robust=rec, rate_met=met)

@@ -225,3 +225,36 @@ def choose(pairs, robust=None, rate=None):
         return (a, f), robust[i], True
     i, a, f = max(ok, key=lambda x: (robust[x[0]]["low"], -objective(x)))
     return (a, f), robust[i], False
+
+
+def robust_refine(d: Design, client, pairs, robust, points, out_dir: Path, stage=None,
+                  warmed=None) -> int:
+    """While no verified point's members reach ``d.pass_rate``: step the most robust
+    FE-passing point away from the analytically failing ones (``safe_step``, doubling) and
+    run it and its members; ``d.refine`` rounds at most. Extends ``pairs`` and ``robust``
+    in place; returns the rounds run."""
+    rounds = 0
+    while d.pass_rate is not None and rounds < d.refine:
+        chosen, _, met = choose(pairs, robust, d.pass_rate)
+        if met or chosen is None:
+            break
+        nxt = safe_step(d, chosen[0], points, rounds)
+        if nxt is None:
+            log.info("robust refinement: no step toward the safe side within the range")
+            break
+        a = evaluate(d, nxt)
+        points.append(a)
+        rounds += 1
+        if not a.feasible:
+            log.info("robust refinement: %s fails analytically (%s): stop", slug(d, nxt),
+                     ",".join(a.failed))
+            break
+        a.note = f"robust refinement {rounds}: step to the safe side"
+        name = f"{len(pairs):02d}_robust_{slug(d, nxt)}"
+        (f,) = run_fe(d, client, [(name, nxt, None)], out_dir, stage, warmed)
+        pairs.append((a, f))
+        if f.feasible:
+            pts = run_fe(d, client, member_jobs(d, name, nxt), out_dir / "members", stage,
+                         warmed)
+            robust[len(pairs) - 1] = robustness(pts)
+    return rounds
