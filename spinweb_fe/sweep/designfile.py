@@ -310,6 +310,20 @@ def build_case(d: Design, values: dict, extra=None, fe=False):
         raise InputError(d.source, exc.key, exc.reason) from None
 
 
+def _fe_startable(d: Design, case):
+    """What the FE refuses at its start (the solver's check, case.scene.prepare), here before
+    the search: a prescribed rate's start at another initial rate."""
+    from spinweb_fe.case.scene import control_from_case
+
+    control = control_from_case(case)
+    if control.law.prescribes_rate:
+        w_law = control.law.rate(control.params, 0.0)[0]
+        if abs(w_law - case.initial.omega) > 1e-12 * max(1.0, abs(w_law)):
+            raise InputError(d.source, "set.initial.omega", f"the FE starts {control.law.name} "
+                             f"from its own rate at t = 0 ({w_law:g} rad/s): set initial.omega "
+                             "to it")
+
+
 def check_cases(d: Design):
     """Build and validate the cases at the search's corners (and chart values)."""
     corners = [{k: v[i] for k, v in d.search.items()} for i in (0, 1)]
@@ -317,7 +331,7 @@ def check_cases(d: Design):
     for values in corners:
         for extra in extras:
             case = build_case(d, values, extra)
-            build_case(d, values, extra, fe=True)
+            _fe_startable(d, build_case(d, values, extra, fe=True))
             if "strength" in d.bounds and case.cable.failure_strain is None:
                 raise InputError(d.source, "bounds.strength", "needs cable.failure_strain "
                                  "in the case (base or [set])")
