@@ -132,7 +132,7 @@ def main(argv=None) -> int:
     for kind in args.only.split(","):
         for tethers in args.tethers.split(","):
             data[f"{kind}_{tethers}"] = sweep(kind, tethers)
-            vp.dump("devices_partial", data)
+            (vp.OUT / "devices.partial.json").write_text(json.dumps(data, default=float))
     vp.OUT.mkdir(parents=True, exist_ok=True)
     out_json.write_text(json.dumps({"machine": vp.machine(), **data}, indent=1, default=float))
     return 0
