@@ -172,7 +172,9 @@ def _chart(args, out, check_writable) -> int:
     check_writable(out)
     t0 = time.perf_counter()
     with _client(args) as client:
-        rows = ch.run_chart(d, client, out)
+        from spinweb_fe.sweep.progress import enabled
+
+        rows = ch.run_chart(d, client, out, enabled(not args.no_progress))
     paths = outputs.write_chart(d, rows, out)
     cols = [d.chart_key, f"least {d.keys[0]}", *outputs.CHART_COLS[2:]]
     _print_table(cols, outputs.chart_table(d, rows))

@@ -92,12 +92,22 @@ def chart_row(d: Design, value: float) -> dict:
             "points": ev.points, "note": note, "wall_s": time.perf_counter() - t0}
 
 
-def run_chart(d: Design, client, out_dir: Path) -> list:
+def run_chart(d: Design, client, out_dir: Path, show: bool = False) -> list:
     """Every chart row on Dask, then the FE checks: at each value of ``d.chart_fe`` one run
     at the least value times ``chart_factor`` (should pass) and one at it divided by the
-    factor (should fail). Rows in chart order with ``fe_above`` / ``fe_below`` Points."""
-    rows = client.gather(client.map(chart_row, [d] * len(d.chart_values), d.chart_values,
-                                    pure=False))
+    factor (should fail). Rows in chart order with ``fe_above`` / ``fe_below`` Points;
+    ``show``: a progress bar per stage."""
+    from dask.distributed import as_completed
+
+    from spinweb_fe.sweep.progress import Stage
+
+    futs = client.map(chart_row, [d] * len(d.chart_values), d.chart_values, pure=False)
+    order = {f.key: i for i, f in enumerate(futs)}
+    rows = [None] * len(futs)
+    with Stage("chart rows (analytic)", len(futs), show) as st:
+        for fut in as_completed(futs):
+            rows[order[fut.key]] = fut.result()
+            st.update(note=f"{d.chart_key} = {rows[order[fut.key]]['value']:g}")
     key, jobs = d.keys[0], []
     for r in rows:
         r["fe_above"] = r["fe_below"] = None
@@ -110,8 +120,9 @@ def run_chart(d: Design, client, out_dir: Path) -> list:
                  r["value"], key, r["least"], len(r["points"]), r["wall_s"],
                  f": {r['note']}" if r["note"] else "")
     if jobs:
-        pts = run_fe(d, client, [(name, vals, {d.chart_key: r["value"]})
-                                 for r, _, name, vals in jobs], out_dir)
+        with Stage("chart FE checks", len(jobs), show) as st:
+            pts = run_fe(d, client, [(name, vals, {d.chart_key: r["value"]})
+                                     for r, _, name, vals in jobs], out_dir, st)
         for (r, side, _, _), p in zip(jobs, pts):
             r[f"fe_{side}"] = p
     return rows
