@@ -135,8 +135,9 @@ def run(args) -> int:
     _print_table(*outputs.pair_table(d, pairs))
     print("stages: " + "; ".join(ran) + f"; total {timing['total']:.1f} s")
     if chosen is None:
-        raise RunError("no FE-verified design: the FE rejected every candidate and "
-                       f"{d.refine} refinement step(s) (see {paths['csv']}); the analytical "
+        n_ref = sum(1 for a, _ in pairs if a.note.startswith("refinement"))
+        raise RunError(f"no FE-verified design: the FE rejected the {len(cands)} candidate(s) "
+                       f"and {n_ref} refinement run(s) (see {paths['csv']}); the analytical "
                        "model and the FE disagree here")
     a, f = chosen
     line = ("design: " + ", ".join(f"{k} = {v:.6g}" for k, v in a.values.items())
