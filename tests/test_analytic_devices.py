@@ -36,15 +36,16 @@ def balances(res):
 @pytest.mark.parametrize("force", [0.0, 1e3, 5e3, 1e4, 2e4, 3e4, 3.8e4, 0.98 * PULL, 1.03 * PULL,
                                    4.5e4, 5e4, 2e5])
 def test_the_brake_runs_from_the_start_at_every_force(force):
-    """Measured: at most 12 switches, K to 4e-9 of K0, the brake's work never rising by more
-    than 1e-9 of E0 a row; where the run stops before its end, it is the one validity stop
-    (an arm over its held coil), never the solver."""
+    """Measured (1 s, 0-200 kN): at most 9 switches, K to 8.9e-9 of K0, the brake's work
+    (E - E0: the integrator's noise) rising by at most 4.0e-9 of E0 in a row (bounds 12,
+    1.2e-8, 6e-9); where the run stops before its end, it is the one validity stop (an arm
+    over its held coil), never the solver."""
     _, res = solved(ARMS, ["stowage.payout='brake'", f"stowage.brake_force={force}",
                            "time.end=1.0"])
     assert not res.stopped or "swings over its held coil" in res.stopped, res.stopped
-    assert len(res.switches) <= 20
+    assert len(res.switches) <= 12
     dK, rise = balances(res)
-    assert dK < 1e-8 and rise < 1e-8
+    assert dK < 1.2e-8 and rise < 6e-9
     if force > 1.1 * PULL:  # above the pull the brake holds: no more than a slip of cm
         assert res.history["arm_length"][-1, 0] < 0.1
 
@@ -87,8 +88,8 @@ def test_a_zero_brake_is_the_free_payout():
 
 @pytest.mark.parametrize("force", [2e4, 3e4, 4e4])
 def test_the_tangent_band_converges(force):
-    """The band's error: 1e-4 rad against 1e-5 (measured at 0.28 s, 30 kN: L 1e-4 m, hub
-    rate 6e-4 rad/s, phi 1e-4 rad; the bounds are 3e-3 m, 5e-3 rad/s, 2e-3 rad)."""
+    """The band's error: 1e-4 rad against 1e-5 over 0.28 s (measured, the worst of 20, 30,
+    40 kN: L 7.7e-4 m, hub rate 1.83e-3 rad/s, phi 1.7e-4 rad; bounds 1.3x)."""
     from spinweb_fe.analytic.integrate import integrate
     from spinweb_fe.analytic.models import params_from_case
     from spinweb_fe.case.scene import control_from_case
@@ -102,6 +103,6 @@ def test_the_tangent_band_converges(force):
                             band=band).history
     n = min(len(a[1e-4]["time"]), len(a[1e-5]["time"]))
     assert n > 250
-    assert np.abs(a[1e-4]["arm_length"][:n] - a[1e-5]["arm_length"][:n]).max() < 3e-3
-    assert np.abs(a[1e-4]["hub_omega"][:n] - a[1e-5]["hub_omega"][:n]).max() < 5e-3
-    assert np.abs(a[1e-4]["arm_angle"][:n] - a[1e-5]["arm_angle"][:n]).max() < 2e-3
+    assert np.abs(a[1e-4]["arm_length"][:n] - a[1e-5]["arm_length"][:n]).max() < 1.0e-3
+    assert np.abs(a[1e-4]["hub_omega"][:n] - a[1e-5]["hub_omega"][:n]).max() < 2.4e-3
+    assert np.abs(a[1e-4]["arm_angle"][:n] - a[1e-5]["arm_angle"][:n]).max() < 2.2e-4
