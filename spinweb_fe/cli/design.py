@@ -73,7 +73,7 @@ def run(args) -> int:
     from spinweb_fe.sweep import design as ds
     from spinweb_fe.sweep import outputs
     from spinweb_fe.sweep import verify as vf
-    from spinweb_fe.sweep.progress import Stage, enabled
+    from spinweb_fe.run.progress import Stage, enabled
 
     d = ds.load_design(args.design)
     check_writable(out)
@@ -173,7 +173,7 @@ def _chart(args, out, check_writable) -> int:
     check_writable(out)
     t0 = time.perf_counter()
     with _client(args) as client:
-        from spinweb_fe.sweep.progress import enabled
+        from spinweb_fe.run.progress import enabled
 
         rows = ch.run_chart(d, client, out, enabled(not args.no_progress))
     paths = outputs.write_chart(d, rows, out)

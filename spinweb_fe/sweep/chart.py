@@ -99,7 +99,7 @@ def run_chart(d: Design, client, out_dir: Path, show: bool = False) -> list:
     ``show``: a progress bar per stage."""
     from dask.distributed import as_completed
 
-    from spinweb_fe.sweep.progress import Stage
+    from spinweb_fe.run.progress import Stage
 
     futs = client.map(chart_row, [d] * len(d.chart_values), d.chart_values, pure=False)
     order = {f.key: i for i, f in enumerate(futs)}

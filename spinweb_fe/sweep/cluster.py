@@ -122,7 +122,7 @@ def _execute(sweep, out_dir, client, scheduler, workers, progress):
                 "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
         fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
         futures[fut] = pos
-    from spinweb_fe.sweep.progress import Stage, enabled
+    from spinweb_fe.run.progress import Stage, enabled
 
     bar = enabled(progress)
     with Stage(f"{sweep.mode} runs", len(rows), show=bar) as stage:

@@ -143,7 +143,7 @@ def evaluate(d: Design, values: dict, extra: dict | None = None) -> Point:
 class Evaluator:
     """Memoised :func:`evaluate` (the bisection and Brent revisit points); ``points`` in
     the order evaluated. With a Dask ``client`` :meth:`many` solves its points in parallel
-    on the workers; ``stage`` (sweep.progress.Stage) counts the solves; ``counts`` per
+    on the workers; ``stage`` (run.progress.Stage) counts the solves; ``counts`` per
     ``phase`` (scan, bisection, Brent, differential evolution) for the final message."""
 
     def __init__(self, d: Design, extra=None, client=None, stage=None):
