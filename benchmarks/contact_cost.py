@@ -21,7 +21,7 @@ from pathlib import Path
 from benchmarks.common import machine
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.fe.cable_contact import CableContact, cable_radius
+from spinweb_fe.record.contact import CableContact, cable_radius
 from spinweb_fe.record.crossings import CrossingAudit
 from spinweb_fe.run.loop import Schedule, simulate
 
@@ -43,9 +43,10 @@ def run(overrides, end, variant, skin):
     if variant != "plain":
         audit = CrossingAudit(scene.model, skin)
     if variant == "contact":
-        contact = CableContact(scene.model, cable_radius(case, scene.model))
+        contact = CableContact(scene.model, cable_radius(case, scene.model), audit=audit)
+    features = [f for f in (audit, contact) if f is not None]
     res = simulate(scene.model, scene.control, scene.state, scene.dt, Schedule(end, 1e-3),
-                   threads=1, crossings=audit, contact=contact)
+                   threads=1, features=features)
     out = {"loop_s": res.loop_s, "steps": res.steps, "elements": scene.model.n_elems,
            "dt": scene.dt}
     if audit is not None:

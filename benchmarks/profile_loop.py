@@ -10,7 +10,7 @@ number is the fastest of ``repeat`` calls in the fastest of ``rounds`` interleav
   length/strain/tension loop, the force vectors; also on a record step (strain energy and max
   tension kept per element and summed) and with an axial damper (velocities gathered too);
 - node sums (fe.forces.node_forces): each node's element forces added in element order;
-- node update (fe.axis.axis_nodes, the fixed-axis node pass): kick and drift, without contact
+- node update (fe.hub.axis.axis_nodes, the fixed-axis node pass): kick and drift, without contact
   and with the hub contact check of every node (r0 = 0.1 m: no node reaches it, so only the
   check is priced);
 - the whole step loop (fe.step.advance, one history row per 256 steps) for comparison.
@@ -33,7 +33,7 @@ from numba import njit
 
 from benchmarks.common import load_average, machine, spinning_web
 from spinweb_fe.fe import forces, step
-from spinweb_fe.fe.axis import AxisKick, NodeMotion, axis_nodes
+from spinweb_fe.fe.hub.axis import AxisKick, NodeMotion, axis_nodes
 from spinweb_fe.fe.forces import make_work
 from spinweb_fe.fe.layout import ARM, ROW_WIDTH, SLOTS
 from spinweb_fe.fe.model import choose_dt

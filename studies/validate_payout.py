@@ -1,6 +1,6 @@
 """Validation of the payout devices (issue 24, item 5): the reel (``payout = "rate"``) and
-the brake (``payout = "brake"``) of fe.payout against their analytical twins (the paying
-regime of analytic.payout, the stick, slip and peel of analytic.devices), with the numbers quoted
+the brake (``payout = "brake"``) of fe.coil.payout against their analytical twins (the paying
+regime of analytic.payout, the stick, slip and peel of analytic.brake), with the numbers quoted
 by docs/validation.md, section 0.5.
 
     .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,eq7brake,web,webbrake,explore,stiff]

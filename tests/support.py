@@ -20,22 +20,20 @@ def eval_elements(elems, pos, vel, force, tension, want_energy):
 def layered_contact_run(sets, end=0.05):
     """The paper's feedback web folded with a 5 mm layer gap, run with the crossing audit
     and the cable contact to ``end`` [s] (history rows every 1 ms, no frames; ``sets``:
-    further case keys). Returns (history, the CableContact, the audit's crossing count)."""
+    further case keys). Returns (history, the record.contact.CableContact, the audit's
+    crossing count)."""
     from pathlib import Path
 
     from spinweb_fe import case as case_mod
     from spinweb_fe.case.scene import prepare
-    from spinweb_fe.fe.cable_contact import CableContact, cable_radius
-    from spinweb_fe.record.crossings import CrossingAudit
+    from spinweb_fe.run.features import features_of
     from spinweb_fe.run.loop import Schedule, simulate
 
     web = Path(__file__).resolve().parents[1] / "cases" / "paper_feedback_web.toml"
     case = case_mod.load(web, ["fold.layer_gap=0.005", f"time.end={end}", "output.frame_dt=0",
                                "contact.cables=true", *sets])
     sc = prepare(case)
-    audit = CrossingAudit(sc.model, case.audit.skin, case.audit.touch)
-    contact = CableContact(sc.model, cable_radius(case, sc.model), case.contact.stiffness,
-                           case.contact.friction)
+    features = {f.name: f for f in features_of(sc.model, sc.state, case)}
     h = simulate(sc.model, sc.control, sc.state, sc.dt, Schedule(end, 1e-3),
-                 crossings=audit, contact=contact).history
-    return h, contact, int(audit.kernel.count[0])
+                 features=features.values()).history
+    return h, features["contact"], features["crossings"].count

@@ -187,3 +187,73 @@ def test_the_rules_see_what_they_guard(graph, tmp_path):
     probe.write_text("def f():\n    from .step import advance\n    from . import model\n")
     found = imports_of(probe, "spinweb_fe.fe.probe", library_modules())
     assert found == {"spinweb_fe.fe.step", "spinweb_fe.fe.model"}
+
+
+#: the Coil fields that hold a registry's code (fe.coil.levels.Coil)
+CODE_FIELDS = ("payout_code", "bundle_code", "coil_code")
+
+
+def literal_codes(tree) -> list:
+    """Comparisons of a registry code field with a number literal (``coil.payout_code >=
+    2``): the line numbers."""
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Compare):
+            continue
+        sides = [node.left, *node.comparators]
+        coded = any(isinstance(s, ast.Attribute) and s.attr in CODE_FIELDS for s in sides)
+        literal = any(isinstance(s, ast.Constant) and isinstance(s.value, (int, float))
+                      and not isinstance(s.value, bool) for s in sides)
+        if coded and literal:
+            found.append(node.lineno)
+    return found
+
+
+def test_no_literal_registry_codes():
+    """What a payout, bundle or coil code means is its registry entry's (``Payout.device``,
+    ``Bundle.timed``, ``Coil.device``): no code compared with a number anywhere."""
+    bad = {name: lines for name, p in library_modules().items()
+           if (lines := literal_codes(ast.parse(p.read_text())))}
+    assert not bad, bad
+    assert literal_codes(ast.parse("if coil.payout_code >= 2:\n    pass\n")) == [1]
+    assert literal_codes(ast.parse("if coil.device:\n    pass\n")) == []
+
+
+def test_every_feature_keeps_its_memory():
+    """Every registered feature carries its state through a checkpoint: a memory of its own
+    (record.feature.Feature.memory) or State arrays the checkpoint saves whole."""
+    from spinweb_fe.case import loads
+    from spinweb_fe.case.scene import prepare
+    from spinweb_fe.fe.state import to_arrays
+    from spinweb_fe.record.feature import Feature
+    from spinweb_fe.run.features import FEATURES
+
+    state = prepare(loads("[tethers]\ncount = 2\nlength = 5.0\nelements = 4\n"
+                          "[time]\nend = 0.01\n")).state
+    saved = set(to_arrays(state))
+    for entry in FEATURES:
+        assert issubclass(entry.cls, Feature) and entry.cls.name == entry.name, entry.name
+        own = entry.cls.memory is not Feature.memory
+        assert own or entry.cls.state_fields, f"{entry.name} has no memory"
+        missing = set(entry.cls.state_fields) - saved
+        assert not missing, (entry.name, missing)
+
+
+def test_the_event_loop_names_no_feature():
+    """run.loop.simulate iterates over the run's features (run.features) and names none of
+    them: no feature's name, class or hook appears in its source."""
+    import inspect
+
+    from spinweb_fe.record.feature import HOOKS
+    from spinweb_fe.run import loop
+    from spinweb_fe.run.features import FEATURES
+
+    words = set(HOOKS) | {e.name for e in FEATURES} | {e.cls.__name__ for e in FEATURES}
+    words |= {"audit", "rupture", "tidal", "strength", "crossing", "linking", "contact"}
+    tokens = {t for t in ast.walk(ast.parse(inspect.getsource(loop.simulate)))
+              if isinstance(t, (ast.Name, ast.Attribute))}
+    names = {getattr(t, "id", None) or t.attr for t in tokens}
+    assert not names & words, names & words
+    fn = ast.parse(inspect.getsource(loop.simulate)).body[0]
+    code = fn.end_lineno - fn.body[0].end_lineno  # the lines after its docstring
+    assert code <= 90, f"simulate has {code} lines of code"

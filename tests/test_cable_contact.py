@@ -1,4 +1,4 @@
-"""Cable-cable contact (fe.cable_contact): the penalty pair against its potential, momentum
+"""Cable-cable contact (fe.contact.penalty): the penalty pair against its potential, momentum
 and angular momentum, an elastic head-on impact integrated by central differences, the
 radius it needs against the closing speed, and a run with the contact on."""
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.cable_contact import KAPPA, contact_forces
-from spinweb_fe.fe.crossing import pair_crossings
+from spinweb_fe.fe.contact.penalty import KAPPA, contact_forces
+from spinweb_fe.fe.contact.crossing import pair_crossings
 
 PAIR = np.array([[0, 1]], np.int64)
 ELEMS = np.array([[0, 1], [2, 3]], np.int64)
@@ -66,7 +66,7 @@ def test_a_held_element_is_pushed_too_and_hands_its_share_on():
     """A free bar 3 cm above a bar held on the hub (both nodes of inverse mass 0): the
     penalty acts, at the free side's stiffness, equal and opposite (sum f = 0, sum x x f
     = 0 to 1e-12), and the held nodes carry their share, which the step hands on to the
-    hub (fe.cable_contact.add_penalty); two held bars are left alone. (Until 4 Dec 2026 a
+    hub (fe.contact.penalty.add_penalty); two held bars are left alone. (Until 4 Dec 2026 a
     pair with a held node had no penalty: only the fail-safe kept cables off the coil.)"""
     pos = crossed_bars(0.03)
     held = np.array([0.0, 0.0, 0.5, 1.5])
@@ -137,7 +137,7 @@ def test_a_head_on_impact_bounces_elastically_without_crossing(speed):
 
 
 def test_a_radius_below_the_speed_limit_lets_the_bars_through():
-    """The penalty's limit, as fe/cable_contact.py states it: closing at 200 m/s with
+    """The penalty's limit, as fe/contact/penalty.py states it: closing at 200 m/s with
     dt = 1e-4 s at mid-element needs a radius of about 1.5 v dt = 3 cm; at 1 mm and 2.5 cm
     the bars pass through (the audit counts it), at 3 and 5 cm they do not."""
     for radius, crossed in ((0.001, 1), (0.025, 1), (0.03, 0), (0.05, 0)):
@@ -151,7 +151,7 @@ def test_the_fail_safe_never_lets_a_bar_through(speed, angle):
     lets the bars through, the impulses at the crossing do not, at 1-200 m/s and two
     angles. Momentum to round-off (1e-12); the kinetic energy they take is what the bars
     lose (the step's KE before less after, 1e-9)."""
-    from spinweb_fe.fe.cable_contact import resolve_crossings
+    from spinweb_fe.fe.contact.failsafe import resolve_crossings
 
     dt, radius = 1e-4, 1e-4
     pos = crossed_bars(0.15, angle=angle)
@@ -229,8 +229,10 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
     from numba import njit
     from test_crossing_audit import scripted, state_at
 
-    from spinweb_fe.fe.cable_contact import AGAIN, MARGIN, CableContact, contact_resolve
-    from spinweb_fe.fe.crossing import closest_points
+    from spinweb_fe.fe.contact.failsafe import contact_resolve
+    from spinweb_fe.fe.contact.penalty import AGAIN, MARGIN
+    from spinweb_fe.fe.contact.crossing import closest_points
+    from spinweb_fe.record.contact import CableContact
     from spinweb_fe.record.crossings import CrossingAudit
 
     @njit
@@ -251,7 +253,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
     audit = CrossingAudit(model, skin=0.05)
     audit.build(state_at(pos0))
     contact = CableContact(model, radius)
-    ck = contact.kernel(audit.kernel, 1)
+    ck = contact.on_list(audit.kernel_data, 1)
     ck.pos0[:] = pos0
     rate, inertia = np.array([1.0]), np.array([1e3])
     impulses, left = again(ck, pos1, vel, inv_mass, dt, rate, inertia)
@@ -271,7 +273,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
     assert above[2] > 0 and dist == pytest.approx(MARGIN * radius, abs=1e-10)
     # the fixed axis takes the impulses' moment about it: none here (they act along z), so
     # the step would not place the hub's nodes again
-    assert rate[0] == 1.0 and ck.spin[1] == 0.0
+    assert rate[0] == 1.0 and ck.hub0.dw[0] == 0.0 and not ck.hub0.took[0]
 
 
 @pytest.mark.slow
@@ -328,7 +330,7 @@ def test_the_contacts_energy_balance_closes_on_the_layered_free_web(tmp_path, hu
     deployed tips' lever): no crossing, no change, balance 0.18 %, the momenta to round-off
     (4 crossings against the hub's tied frame when the free nodes an impact zone carried
     with the hub were left behind by its reaction, 2 when they were placed with it again
-    after it but took no share of it; fe.zones, fe.impulses.body_reaction)."""
+    after it but took no share of it; fe.contact.zones, fe.contact.impulses.body_reaction)."""
     import h5py
 
     from spinweb_fe import case as case_mod

@@ -1,4 +1,4 @@
-"""Coulomb friction between touching cables (``[contact] friction``, fe.cable_contact:
+"""Coulomb friction between touching cables (``[contact] friction``, fe.contact.penalty:
 tangential impulses at the step's end), against its own law: the impulse is mu F dt while
 the pair slides and what stops it when that is more; momentum is kept, the kinetic energy
 it takes is what it books, and a frictionless case is bit-identical to one without the key.
@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.cable_contact import KAPPA, contact_forces
-from spinweb_fe.fe.impulses import friction_impulses
+from spinweb_fe.fe.contact.penalty import KAPPA, contact_forces
+from spinweb_fe.fe.contact.impulses import friction_impulses
 
 PAIR = np.array([[0, 1]], np.int64)
 ELEMS = np.array([[0, 1], [2, 3]], np.int64)
@@ -121,11 +121,11 @@ def test_a_run_with_friction_books_it_and_frictionless_is_unchanged():
 
 
 def test_the_impulses_work_is_the_leapfrogs_pairing():
-    """fe.cable_contact.impulse_work: an impulse that changes v_{n+1/2} from b to a does the
+    """fe.contact.penalty.impulse_work: an impulse that changes v_{n+1/2} from b to a does the
     work m (a - b) . (v_{n-1/2} + a) / 2 (the midpoint rule the step books a force with);
     with v_{n-1/2} = b (no other force in the step) that is the kinetic energy's change;
     held nodes (inverse mass 0) count nothing."""
-    from spinweb_fe.fe.impulses import impulse_work
+    from spinweb_fe.fe.contact.impulses import impulse_work
 
     rng = np.random.default_rng(3)
     before, after, start = (rng.standard_normal((5, 3)) for _ in range(3))

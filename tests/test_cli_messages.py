@@ -38,7 +38,8 @@ def test_info_measures_the_drift_as_the_audit_does(demo_run, capsys):
     capsys.readouterr()
     assert main(["info", str(demo_run)]) == 0
     m = re.search(r"energy balance drift: ([0-9.e+-]+) \(relative to the energy scale of the "
-                  r"run's audit: max\(initial energy, torque work\)\)", capsys.readouterr().out)
+                  r"run's audit: max\(initial energy, torque work, round-off floor\)\)",
+                  capsys.readouterr().out)
     h = read_history(demo_run)
     assert m and float(m.group(1)) == pytest.approx(balance_error(h), rel=1e-3)
     assert float(m.group(1)) < 0.01

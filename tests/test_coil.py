@@ -1,4 +1,4 @@
-"""The held coil, the rate payout and the bundles (spinweb_fe.fe.coil): conservation at every
+"""The held coil, the rate payout and the bundles (spinweb_fe.fe.coil.levels): conservation at every
 release and bundle opening, the payout law, and the arms' uncoiling against the yo-yo."""
 
 import logging
@@ -11,7 +11,8 @@ import pytest
 from spinweb_fe import case as case_mod
 from spinweb_fe.analytic import compare as V
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.fe import coil as coil_mod
+from spinweb_fe.fe.coil import levels as coil_mod
+from spinweb_fe.fe.coil.bundles import open_bundles
 from spinweb_fe.fe import step
 from spinweb_fe.record.energy import energy_balance
 from spinweb_fe.run.loop import Schedule, simulate, start
@@ -191,7 +192,7 @@ def test_opening_the_bundles_is_conservative(bundled_web):
     cs, model, control, state, dt = bundled_web
     st = state.copy()
     E0, K0 = invariants(model, st)
-    coil_mod.open_bundles(model.coil, st.coil, model.nodes, st.node_mass, st.node_inv_mass, 0.8)
+    open_bundles(model.coil, st.coil, model.nodes, st.node_mass, st.node_inv_mass, 0.8)
     assert not np.any(st.coil.bundled)
     E1, K1 = invariants(model, st)
     assert abs(E1 - E0) <= 1e-13 * abs(E0) and abs(K1 - K0) <= 1e-13 * abs(K0)
@@ -255,7 +256,7 @@ def test_the_held_web_uncoils_with_the_eq7_tethers():
 
 @pytest.mark.parametrize("length, taut", [(1.5, False), (1.99, False), (2.01, True)])
 def test_a_level_is_pulled_off_only_by_a_taut_element_of_any_length(length, taut):
-    """fe.coil.pulls on elements of 2 m (25 per 50 m tether; every tether case has 1 m
+    """fe.coil.levels.pulls on elements of 2 m (25 per 50 m tether; every tether case has 1 m
     elements, where a stretch test without its square passes unseen): the front level's free
     element, pointing outward from the hub, pulls the level off only when it is longer than
     its rest length, and never when it points inward."""

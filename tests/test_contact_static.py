@@ -5,7 +5,7 @@ The scene is solved in the frame that turns with the web, where a steady spin is
 force m omega^2 (x, y, 0) on every node (no Coriolis force at rest): a chord of N elements
 pinned at both ends at radius R, pre-tensioned, and a two-node bar across it on the hub's
 side, which the spin presses outward onto the chord. Central differences with a velocity
-damping run it to rest; the contact's forces (fe.cable_contact.contact_forces, the step
+damping run it to rest; the contact's forces (fe.contact.penalty.contact_forces, the step
 loop's kernel) then carry the bar's whole centrifugal load, equal and opposite on the chord,
 and the chord's deflection is the taut string's closed form.
 """
@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.cable_contact import KAPPA, contact_forces
+from spinweb_fe.fe.contact.penalty import KAPPA, contact_forces
 
 OMEGA, R, HALF = 2.0, 10.0, 1.0        # rad/s; chord at radius R [m], half-length [m]
 N, RHO, EA, STRAIN0 = 20, 0.01, 1e5, 1e-3   # elements, kg/m, N, pre-strain

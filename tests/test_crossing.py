@@ -1,4 +1,4 @@
-"""Continuous crossing detection of cable elements (fe/crossing.py): two segments passing
+"""Continuous crossing detection of cable elements (fe/contact/crossing.py): two segments passing
 through each other at 1 to 200 m/s, at several angles and offsets, over steps of the
 paper web's size, are counted exactly once (and not at all when they pass beside each
 other); the count is invariant under rotation and translation; the broad phase lists
@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.crossing import RIGID, candidate_pairs, pair_crossings, step_crossings
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs
+from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
 
 DT = 4.6e-5  # the paper web's step at cfl 0.2 [s]
 
@@ -187,7 +188,7 @@ def test_step_crossings_of_a_net_falling_through_a_line():
 def test_closest_points_of_an_element_of_no_length():
     """A folded web can hold an element whose ends coincide: its closest points are those
     of a point (no division by its zero length)."""
-    from spinweb_fe.fe.crossing import closest_points
+    from spinweb_fe.fe.contact.crossing import closest_points
 
     p = np.array([0.5, 1.0, 0.0])
     s, t, d = closest_points(p, p, np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0]))

@@ -1,5 +1,5 @@
 """The crossing audit of a run (record.crossings, ``[audit] crossings``): the bookkeeping of
-the broad phase around the exact per-step test of fe.crossing, on scripted motions, and in
+the broad phase around the exact per-step test of fe.contact.crossing, on scripted motions, and in
 the step loop, where it must not change the run."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.fe.touch import REBUILD
+from spinweb_fe.fe.contact.touch import REBUILD
 from spinweb_fe.record.crossings import CrossingAudit
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.loop import Schedule, simulate
@@ -171,7 +171,8 @@ def test_an_audited_run_is_the_same_run():
         scene = prepare(small_web(sets))
         audit = CrossingAudit(scene.model) if on else None
         runs[on] = (simulate(scene.model, scene.control, scene.state, scene.dt,
-                             Schedule(0.02, 1e-3), crossings=audit).history, audit)
+                             Schedule(0.02, 1e-3), features=[audit] if on else None).history,
+                   audit)
     plain, (audited, audit) = runs[False][0], runs[True]
     assert set(audited) == set(plain) | {"crossings"}
     for key in plain:
@@ -256,7 +257,7 @@ def test_contact_on_elements_that_start_through_each_other_is_refused(tmp_path, 
     from pathlib import Path
 
     from spinweb_fe.errors import InputError
-    from spinweb_fe.run.driver import check_touch
+    from spinweb_fe.run.features import check_features
 
     web = Path(__file__).resolve().parents[1] / "cases" / "paper_free_web.toml"
     with pytest.raises(InputError) as err:
@@ -268,4 +269,4 @@ def test_contact_on_elements_that_start_through_each_other_is_refused(tmp_path, 
                                       "hub.motion='free'", "perturbation.shape='tilt'",
                                       "perturbation.vz_amplitude=5.0"])
     scene = prepare(by_velocity)
-    check_touch(by_velocity, scene.model, scene.state)
+    check_features(by_velocity, scene.model, scene.state)

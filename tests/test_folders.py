@@ -206,8 +206,10 @@ def test_an_earlier_result_is_replaced_only_after_the_first_flush(tmp_path, good
     assert main(["run", *FAST, "-o", str(out)]) == 1
     assert "simulated failure" in capsys.readouterr().err
     assert seen == [True] and digest(out) == before  # the earlier result, back as it was
-    # a run killed before its first flush left .previous and its own partial files
+    # a run killed before its first flush left .previous (with the manifest it writes
+    # before moving anything) and its own partial files
     (out / ASIDE_NAME).mkdir()
+    (out / ASIDE_NAME / "MANIFEST").write_text(json.dumps(["results.h5", "web.pvd", "frames"]))
     for name in ("results.h5", "web.pvd", "frames"):
         os.replace(out / name, out / ASIDE_NAME / name)
     (out / "results.h5").write_bytes(b"partial")

@@ -1,4 +1,4 @@
-"""The free rigid hub (fe.rigid, fe.free_step), the perturbations (case.perturb) and the
+"""The free rigid hub (fe.hub.rigid, fe.free_step), the perturbations (case.perturb) and the
 gravity gradient (fe.tidal), against closed forms and conservation laws.
 
 Most scenes here are a hub with two 1 m tethers of negligible mass (1e-15 kg per node, so
@@ -717,7 +717,7 @@ def _moved(scene, tilt, shift):
 
 
 def test_a_moved_and_tilted_free_hub_releases_its_coil_as_the_upright_one():
-    """The held coil's release test looks outward from the hub's own axis (fe.coil.pulls
+    """The held coil's release test looks outward from the hub's own axis (fe.coil.levels.pulls
     in the hub frame): the paper's coiled tethers on a free hub, and the same scene moved
     by 2 m and tilted by 0.1 rad, release their levels at the same steps (15 levels per
     arm in 0.1 s), and the tips follow the transformed paths to round-off of the
@@ -746,12 +746,12 @@ def test_a_moved_and_tilted_free_hub_releases_its_coil_as_the_upright_one():
 
 @pytest.mark.parametrize("tilt", [0.0, 0.3])
 def test_the_contact_predicts_the_hub_centre_about_an_offset_centre_of_mass(tilt):
-    """fe.body.hull_of: the hub centre the node pass tests contact against at t + dt, for a
+    """fe.hub.body.hull_of: the hub centre the node pass tests contact against at t + dt, for a
     body whose centre of mass lies 0.8 m off the hub centre (an unbalanced web) and turns at
     25 rad/s: within dt^2 omega^2 |c| of the exact rigid motion (the centre turns about the
     centre of mass; a prediction that only translates it is off by dt omega |c|)."""
-    from spinweb_fe.fe.body import hull_of
-    from spinweb_fe.fe.rigid import RigidState, rotation
+    from spinweb_fe.fe.hub.body import hull_of
+    from spinweb_fe.fe.hub.rigid import RigidState, rotation
 
     dt, w = 1e-4, np.array([tilt, 0.0, 25.0])
     q = np.array([np.cos(0.2), 0.0, np.sin(0.2) * np.sin(0.4), np.sin(0.2) * np.cos(0.4)])

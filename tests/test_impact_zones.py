@@ -1,4 +1,4 @@
-"""Impact zones (fe.zones): the pairs the fail-safe's rounds leave crossing move as rigid
+"""Impact zones (fe.contact.zones): the pairs the fail-safe's rounds leave crossing move as rigid
 zones. A column of five stacked bars through which the top bar drops in one step: with
 one round of pair impulses crossings are left; the zones leave none, keep the linear and
 angular momentum, and a zone with a node held on the hub is left alone and counted."""
@@ -10,9 +10,10 @@ import itertools
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.cable_contact import MARGIN, resolve_crossings
-from spinweb_fe.fe.crossing import pair_crossings
-from spinweb_fe.fe.zones import impact_zones
+from spinweb_fe.fe.contact.failsafe import resolve_crossings
+from spinweb_fe.fe.contact.penalty import MARGIN
+from spinweb_fe.fe.contact.crossing import pair_crossings
+from spinweb_fe.fe.contact.zones import impact_zones
 
 DT = 1e-3
 LAYERS = 5
@@ -120,7 +121,7 @@ def test_after_the_zones_no_pair_crosses():
     rest) no pair crosses over the step, the linear momentum of the free nodes is the
     start's to 1e-12 (round-off), and x_{n+1} = x_n + dt v_{n+1/2} still holds. (The pair
     impulses act at points that are apart at x_n, so they change the angular momentum by
-    their couple; the hub takes it in a run, fe.impulses.)"""
+    their couple; the hub takes it in a run, fe.contact.impulses.)"""
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     P0, _ = momenta(pos1, vel, inv_mass)
     _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4, 1,
@@ -179,7 +180,7 @@ def test_a_zone_with_a_held_node_moves_with_the_hub():
     """The bottom bar held on a hub that turns by 0.05 rad about the z axis over the step
     (the column 2 m from it): the zone of the dropping bar takes the hub's motion, its free
     nodes end where the turn takes them (to 1e-12 m), and no pair crosses."""
-    from spinweb_fe.fe.zones import axis_map
+    from spinweb_fe.fe.contact.zones import axis_map
 
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     pos0 += (2.0, 0.0, 0.0)
@@ -197,10 +198,10 @@ def test_a_zone_with_a_held_node_moves_with_the_hub():
 
 
 def test_the_passes_after_the_first_see_every_pair_of_the_moved_nodes():
-    """fe.zones.pairs_of, on the column's pairs: for any set of moved nodes it gives exactly
+    """fe.contact.zones.pairs_of, on the column's pairs: for any set of moved nodes it gives exactly
     the pairs with an element that has one of them, each once, sorted (the later passes of
     the fail-safe and the zones test these instead of the whole list)."""
-    from spinweb_fe.fe.zones import pair_adjacency, pairs_of
+    from spinweb_fe.fe.contact.zones import pair_adjacency, pairs_of
 
     pairs, elems, *_ = column()
     adj = pair_adjacency(pairs, elems, 2 * LAYERS)
@@ -216,7 +217,7 @@ def _body(rng):
     """A free hub of 100 kg with an anisotropic inertia, turned and moving, and eight free
     nodes of 0.5-2 kg about it: (RigidState, x_{n+1}, v before, v after the impulses,
     inverse masses, V and angular velocity at the step's start)."""
-    from spinweb_fe.fe.rigid import RigidState, jacobi3
+    from spinweb_fe.fe.hub.rigid import RigidState, jacobi3
 
     inertia = np.diag([4000.0, 2500.0, 3000.0])
     inertia[0, 1] = inertia[1, 0] = 300.0
@@ -245,15 +246,15 @@ def _body_momenta(rs, x, vel, inv_mass):
 
 @pytest.mark.parametrize("stuck, place", [(0, True), (3, True), (0, False), (3, False)])
 def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck, place):
-    """fe.impulses.body_reaction: the free body takes the impulses' reaction so that body
+    """fe.contact.impulses.body_reaction: the free body takes the impulses' reaction so that body
     and nodes keep their linear and angular momentum (to 1e-12 of their size); the nodes
-    stuck to it this step (an impact zone moved them with the hub, fe.zones) take the
+    stuck to it this step (an impact zone moved them with the hub, fe.contact.zones) take the
     body's change with it, a rigid motion dV + dw x (x - X) (to 1e-9 of it), their x_{n+1}
     by dt times it; with none stuck the body takes -J / M as before. Without placing (the
     step's last pass, fe.step.settle) the velocities change and no position: the body's
     centre and attitude and the stuck nodes' x_{n+1} stay (bit for bit)."""
-    from spinweb_fe.fe.impulses import body_reaction
-    from spinweb_fe.fe.rigid import inv_inertia, rotation
+    from spinweb_fe.fe.contact.impulses import body_reaction
+    from spinweb_fe.fe.hub.rigid import inv_inertia, rotation
 
     rs, pos, before, after, inv_mass, start = _body(np.random.default_rng(7 + stuck))
     follow = np.zeros(len(pos), np.bool_)
@@ -265,7 +266,7 @@ def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck,
     R0 = rotation(rs.quaternion)  # (the body's change of rate is taken at this attitude)
     w0 = inv_inertia(rs, R0, rs.momentum)
     pos_in, after_in = pos.copy(), after.copy()
-    body_reaction(rs, pos, before, after, inv_mass, start, DT, follow, place)
+    body_reaction(rs, pos, before, after, inv_mass, start[0:3], start[3:6], DT, follow, place)
     P1, L1 = _body_momenta(rs, pos, after, inv_mass)
     assert np.abs(P1 - P0).max() < 1e-12 * np.abs(P0).max()
     assert np.abs(L1 - L0).max() < 1e-12 * np.abs(L0).max()
@@ -288,11 +289,11 @@ def test_nodes_stuck_to_a_free_hub_take_its_reaction_and_the_momenta_stay(stuck,
 
 @pytest.mark.parametrize("place", [True, False])
 def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum(place):
-    """fe.impulses.axis_reaction: the rate's change dw keeps the angular momentum about
+    """fe.contact.impulses.axis_reaction: the rate's change dw keeps the angular momentum about
     the axis of hub and nodes (J dw + sum m (x_{n+1} x v)_z, to 1e-12), the stuck nodes
     turning with the axis, dv = dw z x x_{n+1}, their x_{n+1} by dt dv (without placing,
     the step's last pass: not at all); with none stuck dw = -H_z / J."""
-    from spinweb_fe.fe.impulses import axis_reaction
+    from spinweb_fe.fe.contact.impulses import axis_reaction
 
     rs, pos, before, after, inv_mass, _ = _body(np.random.default_rng(3))
     m = (1.0 / inv_mass)[:, None]

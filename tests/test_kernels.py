@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from spinweb_fe.fe import step
-from spinweb_fe.fe.contact import contact_node
+from spinweb_fe.fe.hub.contact import contact_node
 from spinweb_fe.fe.control import LAWS, KernelLaw, eval_control, make_control
 from spinweb_fe.fe.model import Elements
 from support import eval_elements

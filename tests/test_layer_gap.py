@@ -18,7 +18,7 @@ from meshgen.tethers import tethers
 from spinweb_fe.case import loads
 from spinweb_fe.case.scene import build_mesh
 from spinweb_fe.errors import InputError
-from spinweb_fe.fe.coil_build import build_coil
+from spinweb_fe.fe.coil.build import build_coil
 
 MU = 0.0158  # kg/m, any line density: masses come from rest lengths only
 
@@ -232,7 +232,7 @@ def test_the_paper_coil_rises_pass_over_pass(gap, top):
 
 @pytest.mark.parametrize("gap", [0.005, 0.01])
 def test_the_held_coil_keeps_its_levels_on_the_rim(gap):
-    """The FE held coil (fe.coil_build) reads the stacked mesh as the gap-free one: the same
+    """The FE held coil (fe.coil.build) reads the stacked mesh as the gap-free one: the same
     levels, free elements, rim flags and bases (every level on the rim stays at r0, so the
     release test, the departure point and the arm measure see the same coil); only the
     hub-frame places of the held nodes (level_ref) carry the stack. No free element of a

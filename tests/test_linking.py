@@ -2,7 +2,7 @@
 closed form against the Gauss integral by quadrature and against Klenin & Langowski's
 arcsine form; Hopf links +-1 with orientation, unlinked rings 0, torus links T(2, 2k) =
 k; invariant under rigid motions and under deformations that cross nothing; a segment
-pushed through a loop changes Lk by exactly the sign that fe/crossing.py's detector
+pushed through a loop changes Lk by exactly the sign that fe/contact/crossing.py's detector
 reports (times the orientations); the web's cells: a flat web links nothing."""
 
 import math
@@ -13,7 +13,7 @@ from numpy.polynomial.legendre import leggauss
 
 from meshgen.build import flat_web
 from meshgen.mesh import Mesh
-from spinweb_fe.fe.crossing import pair_crossings, step_crossings
+from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
 from spinweb_fe.record.linking import (box_pairs, cell_loops, linked_pairs, linking_number,
                                        loops_from, segment_linking)
 
@@ -330,7 +330,7 @@ def test_cells_of_the_flat_webs():
 
 def test_a_flat_web_links_nothing_nor_does_it_ruffled_or_rolled_up():
     """Flat: no box overlaps another (z = 0 separates them all). Ruffled by up to a fifth
-    of the mesh width (no element crossing another on the way, fe/crossing.py) and
+    of the mesh width (no element crossing another on the way, fe/contact/crossing.py) and
     turned: nothing linked. Rolled up like a carpet (a spiral of 1.68 turns, layers 1 m
     apart, an embedding like the flat web): many boxes overlap, nothing is linked."""
     mesh = flat_web("quadquad", 30.0, 2.5, 1, 0.0, 5.0)

@@ -17,8 +17,8 @@ from test_linking import along, two_strips
 from spinweb_fe import case as case_mod
 from spinweb_fe.cli import main
 from spinweb_fe.cli.info import summary
-from spinweb_fe.fe.crossing import pair_crossings
-from spinweb_fe.record.linking import LinkingMonitor
+from spinweb_fe.fe.contact.crossing import pair_crossings
+from spinweb_fe.record.linking_check import LinkingMonitor
 from spinweb_fe.record.recorders import Frame, RunInfo
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.restart import restart_case

@@ -8,7 +8,7 @@ import h5py
 import meshio
 import numpy as np
 import pytest
-from closed_forms import quadquad_line_tensions
+from closed_forms import quadquad_line_tensions, string_structure
 
 from meshgen.mesh import lumped_mass
 from meshgen.tethers import tethers
@@ -67,18 +67,6 @@ omega = {omega!r}
 [time]
 end = 1.0
 """
-
-
-def string_structure(m, E=1000 * E):
-    """A uniform string of length H rooted on the axis (node 0 at the origin, tied), m
-    elements, no tip mass."""
-    x = np.linspace(0.0, H, m + 1)
-    pos = np.column_stack([x, np.zeros(m + 1), np.zeros(m + 1)])
-    elems = np.column_stack([np.arange(m), np.arange(1, m + 1)])
-    mass = np.zeros(m + 1)
-    np.add.at(mass, elems.ravel(), 0.5 * RHO * AREA * H / m)
-    return Structure(pos, mass, elems, np.full(m, H / m), np.full(m, E * AREA),
-                     np.array([0]), 1.0)
 
 
 # --- closed forms -------------------------------------------------------------------------

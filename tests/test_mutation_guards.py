@@ -20,8 +20,8 @@ from spinweb_fe.analytic.models import (HALF_PI, ArmParams, accelerations, root_
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.fe.control import free as free_law
 from spinweb_fe.fe.control import make_control
-from spinweb_fe.fe.axis import place_rigid
-from spinweb_fe.fe.contact import contact_node
+from spinweb_fe.fe.hub.axis import place_rigid
+from spinweb_fe.fe.hub.contact import contact_node
 from spinweb_fe.fe.layout import SLOTS, row_columns
 from spinweb_fe.fe.model import Elements, build_model, choose_dt
 from spinweb_fe.fe.state import initial_state
@@ -320,7 +320,7 @@ def test_held_coil_takes_the_moment_of_the_forces_on_it():
     first steps) the angular momentum of hub, coil and free nodes is conserved to round-off
     (the energy audit is switched off: this is the check)."""
     from spinweb_fe.case.scene import prepare
-    from spinweb_fe.fe import coil as coil_mod
+    from spinweb_fe.fe.coil import levels as coil_mod
 
     text = (TETHER_CASE.replace("'straight'", "'coiled'").replace("omega = 2.0", "omega = 25.0")
             .replace("elements = 10", "elements = 50"))

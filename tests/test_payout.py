@@ -1,4 +1,4 @@
-"""The payout devices (fe.payout: the reel of payout = 'rate', the brake, the gate), their
+"""The payout devices (fe.coil.payout: the reel of payout = 'rate', the brake, the gate), their
 analytical twins (analytic.payout, analytic.braking) and the steady start, against
 closed forms and conservation laws.
 
@@ -73,7 +73,7 @@ def test_the_device_work_closes_the_energy_balance_to_second_order():
     """KE + SE - W_device stays constant to O(dt^2): 2.35 J at cfl 0.2 and 0.60 J at 0.1
     over 0.04 s (ratio 3.9), against 1.8 MJ of kinetic energy and 1e5 J of device work: the
     device's work is the energy its update changes with the leapfrog's midpoint pairing
-    (fe.line.line_pairing; without it the error is first order, 0.5 % of the work)."""
+    (fe.coil.line.line_pairing; without it the error is first order, 0.5 % of the work)."""
     drift = []
     for cfl in (0.2, 0.1):
         h = run(REEL + [f"time.cfl={cfl}"], 0.04)

@@ -11,8 +11,8 @@ import pytest
 
 from spinweb_fe.io import checkpoint as ckmod
 from spinweb_fe.cli import main
-from spinweb_fe.fe.coil import CoilState
-from spinweb_fe.fe.rigid import RigidState
+from spinweb_fe.fe.coil.levels import CoilState
+from spinweb_fe.fe.hub.rigid import RigidState
 from spinweb_fe.fe.rupture import StrengthState
 from spinweb_fe.fe.state import HubState, State, to_arrays
 

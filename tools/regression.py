@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-GROUPS = ("history", "frames", "mesh")
+GROUPS = ("history", "frames", "mesh", "crossings", "linking", "verdict")
 FREE = ("hub.motion='free'",)
 #: (name, case file, --set overrides): scenes the case files do not cover
 VARIANTS = (
@@ -54,6 +54,14 @@ VARIANTS = (
     ("v_free_strength", "paper_free_arms", FREE + ("cable.failure_strain=0.01",)),
     ("v_fixed_damped", "paper_free_arms", ("cable.damping_ratio=0.05",)),
     ("v_fixed_loose", "paper_free_arms", ("stowage.coil='loose'",)),
+    ("v_contact_feedback_layers", "paper_feedback_web",
+     ("fold.layer_gap=0.005", "contact.cables=true", "contact.friction=0.3",
+      "audit.crossings=true")),
+    ("v_contact_free_tilt", "paper_free_web",
+     FREE + ("fold.layer_gap=0.005", "perturbation.vz_amplitude=0.1",
+             "perturbation.hub_tilt_rate=0.01", "contact.cables=true",
+             "audit.crossings=true")),
+    ("v_audit_free_layers", "paper_free_web", ("fold.layer_gap=0.005", "audit.crossings=true")),
 )
 
 

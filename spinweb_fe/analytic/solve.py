@@ -24,7 +24,7 @@ from spinweb_fe.analytic.models import params_from_case
 from spinweb_fe.analytic.payout import Brake, Payout
 from spinweb_fe.analytic.sample import drifts  # noqa: F401
 from spinweb_fe.case.scene import control_from_case
-from spinweb_fe.fe.payout import PAYOUTS, payout_table
+from spinweb_fe.fe.coil.payout import PAYOUTS, payout_table
 from spinweb_fe.record import verdict
 
 log = logging.getLogger(__name__)
@@ -57,7 +57,7 @@ def solve_case(case, model: str = "consistent", tether_mass: bool = True,
 
 def devices_from_case(case) -> tuple:
     """(Payout or None, Brake or None): the case's reel (its paid-out length law) or brake
-    (its force law), fe.payout.PAYOUTS; (None, None) for a free payout or a case without a
+    (its force law), fe.coil.payout.PAYOUTS; (None, None) for a free payout or a case without a
     coil.
 
     Raises

@@ -19,12 +19,14 @@ from meshgen.registry import COILED_FOLDS, TETHER_FOLDS, WEB_FOLDS, area_from_ar
 from spinweb_fe.case.perturb import SHAPES
 from spinweb_fe.case.schema import (MAX_ELEMENTS, MAX_FRAMES, MAX_HISTORY_ROWS, REQUIRED,
                                     SCHEMA, TOP_KEYS, Field)
+from spinweb_fe.case.text import (MAX_DEPTH, check_text, depth, dumps_toml, parse_toml,
+                                  read_toml, show)
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.choice import validate_choice
-from spinweb_fe.fe.coil import BUNDLES, COILS
+from spinweb_fe.fe.coil.levels import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.fe.model import MOTIONS
-from spinweb_fe.fe.payout import PAYOUTS
+from spinweb_fe.fe.coil.payout import PAYOUTS
 from spinweb_fe.fe.tidal import R_EARTH
 
 def _table_class(name, fields):
@@ -93,25 +95,8 @@ class Case:
         return dumps_toml(self.to_dict())
 
 
-def _fmt(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else ("nan" if v != v else ("inf" if v > 0 else "-inf"))
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_fmt(x) for x in v) + "]"
-    return repr(v)
-
-
-def dumps_toml(d: dict) -> str:
-    """Serialise a two-level dict of scalars as TOML text."""
-    lines = [f"{k} = {_fmt(v)}" for k, v in d.items() if not isinstance(v, dict)]
-    for k, v in d.items():
-        if isinstance(v, dict):
-            lines += ["", f"[{k}]"] + [f"{kk} = {_fmt(vv)}" for kk, vv in v.items()]
-    return "\n".join(lines) + "\n"
+MAX_INT = 2 ** 53  # integers beyond are not exact as floats (sizes are checked as floats)
+MAX_TEXT = 4096  # characters of a string
 
 
 def _suggest(key, valid):
@@ -123,21 +108,31 @@ def _coerce(src, dotted, field: Field, value):
     kind = field.kind
     if kind == "float":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise InputError(src, dotted, f"expected a number, got {type(value).__name__} {value!r}")
-        value = float(value)
+            raise InputError(src, dotted, f"expected a number, got {type(value).__name__} "
+                             f"{show(value)}")
+        try:
+            value = float(value)
+        except OverflowError:  # an integer beyond the floats (10^309 and up)
+            raise InputError(src, dotted, f"must be finite, got {show(value)} (beyond the "
+                             "largest float, 1.8e308)") from None
         if not math.isfinite(value):
             raise InputError(src, dotted, f"must be finite, got {value}")
     elif kind == "int":
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise InputError(src, dotted, f"expected an integer, got {value!r}")
+            raise InputError(src, dotted, f"expected an integer, got {show(value)}")
+        if abs(value) > MAX_INT:
+            raise InputError(src, dotted, f"{show(value)} is beyond the integers a run can "
+                             f"hold (|n| < 2^53)")
     elif kind == "str":
         if not isinstance(value, str):
-            raise InputError(src, dotted, f"expected a string, got {value!r}")
+            raise InputError(src, dotted, f"expected a string, got {show(value)}")
+        if not isinstance(field.check, tuple):  # free text (a choice names its values)
+            check_text(src, dotted, value, MAX_TEXT)
     elif kind == "bool":
         if not isinstance(value, bool):
-            raise InputError(src, dotted, f"expected true or false, got {value!r}")
+            raise InputError(src, dotted, f"expected true or false, got {show(value)}")
     elif kind == "table":
         return _table(src, dotted, value)
     elif kind == "vector":
@@ -150,7 +145,7 @@ def _coerce(src, dotted, field: Field, value):
     chk = field.check
     if isinstance(chk, tuple):
         if value not in chk:
-            raise InputError(src, dotted, f"unknown value {value!r}{_suggest(value, chk)}")
+            raise InputError(src, dotted, f"unknown value {show(value)}{_suggest(value, chk)}")
     elif chk == "pos" and not value > 0:
         raise InputError(src, dotted, f"must be > 0 ({field.unit or 'dimensionless'}), got {value}")
     elif chk == "nonneg" and not value >= 0:
@@ -166,7 +161,7 @@ def _vector(src, dotted, field, value):
     """A list of three finite numbers, each passing the field's check -> tuple of floats."""
     if not (isinstance(value, list) and len(value) == 3 and all(
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)):
-        raise InputError(src, dotted, f"expected a list of three numbers, got {value!r}")
+        raise InputError(src, dotted, f"expected a list of three numbers, got {show(value)}")
     one = Field("float", check=field.check, unit=field.unit)
     return tuple(_coerce(src, dotted, one, x) for x in value)
 
@@ -178,7 +173,7 @@ def _table(src, dotted, value):
     if not (isinstance(value, list) and value and all(
             isinstance(p, list) and len(p) == 2 and all(number(x) for x in p) for p in value)):
         raise InputError(src, dotted, f"expected a list of [t, value] pairs of numbers, "
-                         f"got {value!r}")
+                         f"got {show(value)}")
     return tuple((float(a), float(b)) for a, b in value)
 
 
@@ -206,7 +201,7 @@ def validate(raw: dict, source: str = "<string>") -> Case:
                 continue
             given = {}
         if not isinstance(given, dict):
-            raise InputError(src, name, f"must be a table [{name}], got {given!r}")
+            raise InputError(src, name, f"must be a table [{name}], got {show(given)}")
         for key in given:
             if key not in fields:
                 raise InputError(src, f"{name}.{key}", f"unknown key{_suggest(key, fields)}")
@@ -412,8 +407,9 @@ def _check_sizes(src, scene, t):
         n_elems = 2.0 * n * (n + 1.0) * web["elements_per_segment"]
         # the key furthest from its default is the one at fault (web.side = 1e9, say)
         d = SCHEMA["web"]
-        far = {"web.side": (web["side"] / d["side"].default) ** 2,
-               "web.mesh_width": (d["mesh_width"].default / web["mesh_width"]) ** 2,
+        side, width = web["side"] / d["side"].default, d["mesh_width"].default / web["mesh_width"]
+        far = {"web.side": side * side,  # (products overflow to inf, powers raise)
+               "web.mesh_width": width * width,
                "web.elements_per_segment": float(web["elements_per_segment"])}
         key = max(far, key=far.get)
     else:
@@ -445,6 +441,11 @@ def parse_set(arg: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = text.strip()
+    except (ValueError, RecursionError):  # 5000 digits; arrays nested past the recursion
+        raise InputError("--set", key, "not a readable value (an integer of more than 4300 "
+                         "digits, or arrays nested too deep)") from None
+    if depth(value) > MAX_DEPTH:
+        raise InputError("--set", key, f"arrays nested more than {MAX_DEPTH} levels deep")
     return parts, value
 
 
@@ -471,30 +472,11 @@ def load(path, sets=()) -> Case:
         ``key=value`` overrides (TOML value syntax), applied before validation.
     """
     path = Path(path)
-    if path.is_dir():
-        raise InputError(path, "", "is a folder, not a case file")
-    if not path.is_file():
-        raise InputError(path, "", "no such file")
-    try:
-        text = path.read_bytes()
-    except OSError as exc:
-        raise InputError(path, "", f"cannot read the file ({exc.strerror})") from None
-    if not text.strip():
-        raise InputError(path, "", "the file is empty")
-    try:
-        raw = tomllib.loads(text.decode("utf-8-sig"))  # a byte-order mark is harmless
-    except UnicodeDecodeError:
-        raise InputError(path, "", "not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    raw = read_toml(path, "case file", missing="no such file")
     raw = apply_overrides(raw, sets)
     return validate(raw, str(path))
 
 
 def loads(text: str, sets=()) -> Case:
     """Validate a case given as TOML text (tests, notebooks)."""
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError("<string>", "", f"TOML syntax error: {exc}") from None
-    return validate(apply_overrides(raw, sets))
+    return validate(apply_overrides(parse_toml(text, "<string>"), sets))

@@ -20,12 +20,12 @@ from meshgen.tethers import tethers
 from spinweb_fe.case.perturb import (RANDOM, SHAPES, TILT, mode_field, perturbed,
                                      random_field)
 from spinweb_fe.errors import InputError, RunError
-from spinweb_fe.fe.coil import BUNDLES, COILS
-from spinweb_fe.fe.coil_build import build_coil
+from spinweb_fe.fe.coil.levels import BUNDLES, COILS
+from spinweb_fe.fe.coil.build import build_coil
 from spinweb_fe.fe.control import Control, make_control
 from spinweb_fe.fe.model import MOTIONS, Model, Nodes, build_model, choose_dt
-from spinweb_fe.fe.payout import PAYOUTS, payout_table
-from spinweb_fe.fe.rigid import make_body
+from spinweb_fe.fe.coil.payout import PAYOUTS, payout_table
+from spinweb_fe.fe.hub.rigid import make_body
 from spinweb_fe.fe.rupture import make_strength
 from spinweb_fe.fe.state import State, initial_state
 from spinweb_fe.fe.tidal import R_EARTH, orbit

@@ -11,10 +11,10 @@ from typing import Any
 from meshgen.registry import TETHER_FOLDS, TIES, TOPOLOGIES, WEB_FOLDS, WRAP_SIGN
 from spinweb_fe.case.perturb import SHAPES
 from spinweb_fe.fe.choice import registry_keys
-from spinweb_fe.fe.coil import BUNDLES, COILS
+from spinweb_fe.fe.coil.levels import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.fe.model import MOTIONS
-from spinweb_fe.fe.payout import PAYOUTS
+from spinweb_fe.fe.coil.payout import PAYOUTS
 from spinweb_fe.record.criteria import LIMITS as VERDICT_LIMITS
 
 REQUIRED = object()  # marker: the key has no default

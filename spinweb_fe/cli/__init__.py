@@ -15,13 +15,15 @@ import re
 import signal
 import sys
 import threading
+import warnings
 
 import spinweb_fe
 from spinweb_fe import __version__
+from spinweb_fe.cli import environ
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
 
 COMMANDS = ("run", "check", "mesh", "analytic", "plot", "prestress", "modes", "info", "render",
-            "sweep", "design")
+            "sweep", "design", "converge")
 log = logging.getLogger(__name__)
 
 
@@ -57,8 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _one_line(text) -> str:
-    """The message on one line: control characters (newlines from a key or value) escaped."""
-    return re.sub(r"[\x00-\x1f\x7f]", lambda m: repr(m.group())[1:-1], str(text))
+    """The message on one line: control characters (newlines from a key or value, and the
+    line breaks of str.splitlines: NEL, LS, PS) escaped."""
+    return re.sub(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]", lambda m: repr(m.group())[1:-1],
+                  str(text))
 
 
 def _terminated(signum, frame):  # SIGTERM before a run installs its own handler
@@ -69,9 +73,11 @@ def main(argv=None) -> int:
     """Run the CLI; returns the exit code instead of exiting."""
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
+    shown, warnings.showwarning = warnings.showwarning, environ.show_warning
     try:
         return _main(argv)
     finally:
+        warnings.showwarning = shown
         if main_thread:
             signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
@@ -83,6 +89,10 @@ def _main(argv) -> int:
         command = args.command
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                             format="%(message)s", stream=sys.stderr, force=True)
+        if not args.verbose:  # other libraries' messages: one line each
+            for handler in logging.getLogger().handlers:
+                handler.addFilter(environ.OneLine())
+        environ.check_environment(command)
         return int(args._run(args) or 0)
     except InputError as exc:
         print(f"spinweb: error: {_one_line(exc)}", file=sys.stderr)
@@ -104,6 +114,16 @@ def _main(argv) -> int:
         return 1
     except KeyboardInterrupt:  # SIGINT outside the step loop (start-up, reading files)
         print("spinweb: interrupted by SIGINT", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"spinweb: {command} failed: out of memory", file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback with -v
+        log.debug("traceback:", exc_info=True)
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        print(f"spinweb: {command} failed: internal error: {type(exc).__name__}"
+              f"{': ' if text else ''}{_one_line(text)} (spinweb -v {command} ... shows "
+              "where; please report it)", file=sys.stderr)
         return 1
 
 

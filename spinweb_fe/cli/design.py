@@ -6,6 +6,7 @@ against one design input (DIR/chart.csv, .json, .png). docs/design.md."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import time
@@ -36,6 +37,8 @@ def add_parser(sub):
                         "points)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bars (they show only on a terminal, not under CI)")
+    p.add_argument("--force", action="store_true",
+                   help="start more workers than this machine can hold (docs/sweep.md)")
     return p
 
 
@@ -50,12 +53,33 @@ def _print_table(cols, rows):
         print("  ".join(v.ljust(w) for v, w in zip(line, widths)).rstrip())
 
 
-def _client(args):
+def _client(args, d):
     from spinweb_fe.sweep.cluster import dask_client
+    from spinweb_fe.sweep.limits import check_workers
 
     if args.scheduler and args.workers != 2:
         log.warning("--workers is ignored with --scheduler (the cluster has its own workers)")
+    if not args.scheduler:  # a cluster of this machine's processes, each running the base
+        from spinweb_fe.case.load import validate
+        from spinweb_fe.run.estimate import case_elements
+
+        try:
+            elements = case_elements(validate(d.base_raw, str(d.base)))
+        except InputError:  # the design's own values complete it: the checks come later
+            elements = 0.0
+        check_workers(args.workers, elements, getattr(args, "force", False))
     return dask_client(args.scheduler, args.workers)
+
+
+@contextlib.contextmanager
+def _claim(out, what):
+    """One sweep or design per folder (its ``sweep.lock``, as a run's ``run.lock``)."""
+    from spinweb_fe.io.folder import SWEEP_LOCK, FolderLock, busy, holder
+
+    if (info := holder(out, SWEEP_LOCK)) is not None:
+        raise busy(out, info, "sweep or design")
+    with FolderLock(out, SWEEP_LOCK, what):
+        yield
 
 
 def _ran(name, stage, seconds, what="runs") -> str:
@@ -77,10 +101,15 @@ def run(args) -> int:
 
     d = ds.load_design(args.design)
     check_writable(out)
+    with _claim(out, "design"):
+        return _design(args, d, out, ds, outputs, vf, Stage, enabled)
+
+
+def _design(args, d, out, ds, outputs, vf, Stage, enabled) -> int:
     show = enabled(not args.no_progress)
     t0 = time.perf_counter()
     timing, ran = {}, []
-    with _client(args) as client:
+    with _client(args, d) as client:
         with Stage("analytic search", None, show, unit="solve") as st:
             ev = ds.Evaluator(d, client=client, stage=st)
             points = ds.search(d, ev)
@@ -172,11 +201,12 @@ def _chart(args, out, check_writable) -> int:
         d = dataclasses.replace(d, chart_fe=())
     check_writable(out)
     t0 = time.perf_counter()
-    with _client(args) as client:
-        from spinweb_fe.run.progress import enabled
+    from spinweb_fe.run.progress import enabled
 
-        rows = ch.run_chart(d, client, out, enabled(not args.no_progress))
-    paths = outputs.write_chart(d, rows, out)
+    with _claim(out, "design"):
+        with _client(args, d) as client:
+            rows = ch.run_chart(d, client, out, enabled(not args.no_progress))
+        paths = outputs.write_chart(d, rows, out)
     cols = [d.chart_key, f"least {d.keys[0]}", *outputs.CHART_COLS[2:]]
     _print_table(cols, outputs.chart_table(d, rows))
     n = sum(math.isfinite(r["least"]) for r in rows)

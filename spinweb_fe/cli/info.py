@@ -52,8 +52,10 @@ def _lines(path, h5) -> list:
             K = h["angular_momentum"]
             lines.append(f"angular_momentum: {K[0]:.6g} -> {K[-1]:.6g} N m s")
         if "contact_dissipation" in h:
-            lines.append(f"energy balance drift: {balance_error(h):.3e} (relative to the "
-                         "energy scale of the run's audit: max(initial energy, torque work))")
+            lines.append(f"energy balance drift: "
+                         f"{balance_error(h, floor=float(a.get('energy_floor', 0.0))):.3e} "
+                         "(relative to the energy scale of the run's audit: max(initial "
+                         "energy, torque work, round-off floor))")
         lines.append(f"max_tension: {np.max(h['max_tension']):.6g} N")
     if "frames" in h5:
         lines.append(f"frames: {h5['frames']['time'].shape[0]}")
@@ -126,7 +128,7 @@ def judge_file(h5, h) -> list:
     if "mesh" not in h5:  # the analytical model: no failure strain, no gravity gradient
         terms.update(failure_strain=None, gravity=False)
     return verdict.judge(h, full, r0, status=status, out_of_plane="out_of_plane_max" in h,
-                         **terms)
+                         **terms, **verdict.floors_of(h5.attrs))
 
 
 def _live(path, h) -> str:

@@ -35,6 +35,9 @@ def add_parser(sub):
     p.add_argument("--dry-run", action="store_true",
                    help="validate and list the runs, run nothing")
     p.add_argument("--no-progress", action="store_true", help="no line per finished run")
+    p.add_argument("--force", action="store_true",
+                   help="start more runs or workers than this machine can hold (the limits "
+                        "of docs/sweep.md)")
     return p
 
 
@@ -43,16 +46,20 @@ def _fmt(v):
 
 
 def run(args) -> int:
-    from spinweb_fe.io.folder import check_writable
+    from spinweb_fe.io.folder import SWEEP_LOCK, FolderLock, busy, check_writable, holder
     from spinweb_fe.sweep import report as sweep_report
     from spinweb_fe.sweep import run as sw
+    from spinweb_fe.sweep.limits import check_workers
 
     if args.workers < 1:
         raise InputError("--workers", "", f"must be >= 1, got {args.workers}")
+    force = getattr(args, "force", False)
     spec = sw.load_sweep(args.sweep, mode=args.mode, sets=args.sets,
-                         only=[x for arg in args.only for x in arg.split(",")])
+                         only=[x for arg in args.only for x in arg.split(",")], force=force)
     out = Path(args.output) if args.output else Path("out") / Path(args.sweep).stem
     check_writable(out)  # before a cluster starts: one line, not a traceback per run
+    if not args.scheduler:  # a cluster of this machine's processes
+        check_workers(args.workers, max((r.elements for r in spec.runs), default=0.0), force)
     if args.dry_run:
         print(f"{len(spec.runs)} {spec.mode} runs of {spec.base} -> {out}/runs/")
         for r in spec.runs:
@@ -60,11 +67,14 @@ def run(args) -> int:
         return 0
     if args.scheduler and args.workers != 2:
         log.warning("--workers is ignored with --scheduler (the cluster has its own workers)")
-    from spinweb_fe.sweep.cluster import execute
+    if (info := holder(out, SWEEP_LOCK)) is not None:  # one sweep per folder
+        raise busy(out, info, "sweep or design")
+    with FolderLock(out, SWEEP_LOCK, "sweep"):
+        from spinweb_fe.sweep.cluster import execute
 
-    rows = execute(spec, out, scheduler=args.scheduler, workers=args.workers,
-                      progress=not args.no_progress)
-    paths = sweep_report.write_summary(spec, rows, out)
+        rows = execute(spec, out, scheduler=args.scheduler, workers=args.workers,
+                          progress=not args.no_progress)
+        paths = sweep_report.write_summary(spec, rows, out)
     cols, data = sweep_report.table(spec, rows)
     shown = ["name", *sw.PLOTTED, "passed", "failed", "wall_time_s", "status"]
     idx = [cols.index(c) for c in shown]

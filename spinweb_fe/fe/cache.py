@@ -3,9 +3,10 @@
 numba stamps a cached function with the hash of its own source file only, so a kernel that
 calls (and inlines) a jitted helper of another file would keep stale machine code after that
 helper changed. The locators below give every function defined in ``spinweb_fe/fe/`` one
-stamp: the hash of every module of the folder. An edit anywhere in ``fe/`` recompiles every
-``fe`` kernel once; anything else keeps numba's own locators. This lets a feature live in a
-file of its own (contact, the hub, the coil) while the step loop calls it.
+stamp: the hash of every module of the folder and its subfolders (``hub/``, ``coil/``,
+``contact/``). An edit anywhere in ``fe/`` recompiles every ``fe`` kernel once; anything
+else keeps numba's own locators. This lets a feature live in a file of its own (contact,
+the hub, the coil) while the step loop calls it.
 
 Installed when ``spinweb_fe.fe`` is imported, before any of its kernels is defined.
 """
@@ -22,14 +23,14 @@ _memo: dict = {}
 
 
 def folder_stamp(folder: Path = FOLDER) -> str:
-    """sha256 over the names and contents of every ``*.py`` file of ``folder`` (memoised on
-    their sizes and modification times)."""
-    files = sorted(folder.glob("*.py"))
-    key = (str(folder), tuple((p.name, p.stat().st_mtime_ns, p.stat().st_size) for p in files))
+    """sha256 over the paths (relative to ``folder``) and contents of every ``*.py`` file of
+    ``folder`` and its subfolders (memoised on their sizes and modification times)."""
+    files = sorted(folder.rglob("*.py"))
+    key = (str(folder), tuple((str(p), p.stat().st_mtime_ns, p.stat().st_size) for p in files))
     if key not in _memo:
         h = hashlib.sha256()
         for p in files:
-            h.update(p.name.encode())
+            h.update(p.relative_to(folder).as_posix().encode())
             h.update(b"\0")
             h.update(p.read_bytes())
         _memo[key] = h.hexdigest()
@@ -37,8 +38,9 @@ def folder_stamp(folder: Path = FOLDER) -> str:
 
 
 def _in_folder(py_file) -> bool:
+    """The file lies in fe/ or one of its subfolders."""
     try:
-        return Path(py_file).resolve().parent == FOLDER
+        return FOLDER in Path(py_file).resolve().parents
     except OSError:
         return False
 

@@ -3,8 +3,8 @@ what the name means, the case keys it uses (with units and checks), how they are
 the code the solver reads, and the analytical model's counterpart where there is one.
 
 The registries: hub control laws (:data:`spinweb_fe.fe.control.LAWS`, :class:`Law` entries
-with their own analytical forms), payout devices (:data:`spinweb_fe.fe.payout.PAYOUTS`), the
-coil and its bundles (:data:`spinweb_fe.fe.coil.COILS`, :data:`~spinweb_fe.fe.coil.BUNDLES`),
+with their own analytical forms), payout devices (:data:`spinweb_fe.fe.coil.payout.PAYOUTS`), the
+coil and its bundles (:data:`spinweb_fe.fe.coil.levels.COILS`, :data:`~spinweb_fe.fe.coil.levels.BUNDLES`),
 hub motions (:data:`spinweb_fe.fe.model.MOTIONS`) and perturbation shapes
 (:data:`spinweb_fe.case.perturb.SHAPES`). The case schema builds its keys from the entries,
 the loader validates a table with :func:`validate_choice`, and the solver reads ``code``.

@@ -35,10 +35,10 @@ class Term(NamedTuple):
     """An energy term of the balance KE + SE + sum(sign * term) = const.
 
     ``sign`` -1: work done on the system (an input), +1: energy it loses (a dissipation).
-    ``step``: True if the step loop accumulates it in ``State.totals`` (else it is recorded
-    with its feature, as the rupture dissipation in the strength row). ``present``: None for
-    a term every run has, else whether a Model can have it (its history column is written
-    only then).
+    ``step``: True if the step loop accumulates it in ``State.totals`` (a column of the
+    scalar row), else it is a column of its feature's table (:attr:`col`: the strength row,
+    the devices' per-arm row, the contact's row). ``present``: for a step term only some
+    scenes have, whether a Model has it (its history column is written only then).
     """
 
     name: str
@@ -47,6 +47,11 @@ class Term(NamedTuple):
     doc: str
     step: bool = True
     present: Callable | None = None
+
+    @property
+    def col(self) -> Col:
+        """The term as a column of its feature's table."""
+        return Col(self.name, 1, self.units, self.doc)
 
 
 #: the scalar row, before the energy terms (each a column of width 1)
@@ -71,22 +76,21 @@ ENERGY = (
     Term("contact_dissipation", 1, "J", "energy lost in cable-hub contact (impact and "
                                         "friction)"),
     Term("rupture_dissipation", 1, "J", "rupture: strain energy the broken elements held "
-                                        "when they broke", step=False,
-         present=lambda model: bool(model.strength.rupture)),
+                                        "when they broke", step=False),
     Term("brake_work", -1, "J", "reel or brake (payout = rate or brake): each arm's device's "
                                 "work on its line so far, per arm (negative: energy it took)",
-         step=False, present=lambda model: model.coil.payout_code >= 2),
+         step=False),
     Term("gravity_gradient_work", -1, "J", "gravity gradient: work of the tidal field on "
                                            "nodes and hub",
          present=lambda model: model.env.n > 0.0),
     Term("cable_contact_energy", 1, "J", "cable-cable contact (contact.cables): energy "
-                                         "stored in its penalty springs now",
-         step=False, present=lambda model: False),
+                                         "stored in its penalty springs now", step=False),
     Term("cable_contact_dissipation", 1, "J", "cable-cable contact (contact.cables): kinetic "
                                               "energy its impulses took from pairs that "
                                               "would have passed through each other",
-         step=False, present=lambda model: False),
+         step=False),
 )
+TERMS = {t.name: t for t in ENERGY}
 STEP_TERMS = tuple(t for t in ENERGY if t.step)
 
 #: the vector row of runs that can leave the plane (a free hub, a perturbation)
@@ -112,16 +116,22 @@ VECTOR = (
         present=lambda model: model.body is None),
 )
 
-#: per arm of a held coil (the step records them; record/arms.py reads them by name)
+#: per arm, the payout devices' columns (a reel or brake at D: fe.coil.payout)
+DEVICE = (
+    Col("brake_tension", 1, "N", "reel or brake: the line tension at each arm's departure "
+                                 "point"),
+    TERMS["brake_work"].col,
+)
+
+#: per arm of a held coil (the step records them; record/arms.py reads them by name), its
+#: devices' columns last
 ARM = (
     Col("front", 1, "m", "arm coordinate of the peel front (its base once all is released)"),
     Col("next", 1, "m", "arm coordinate of the next outer level"),
     Col("rim", 1, "1", "1 if the front lies on the hub rim"),
     Col("held_back", 1, "1", "1 if the payout law holds the front back"),
     Col("allowed", 1, "m", "paid-out length the payout law allows (NaN: free payout)"),
-    Col("tension", 1, "N", "reel or brake: the line tension at the departure point"),
-    Col("work", 1, "J", "reel or brake: the device's work so far (negative: energy taken)"),
-)
+) + DEVICE
 
 #: the strength row of scenes with a failure strain (fe.rupture)
 STRENGTH = (
@@ -129,8 +139,14 @@ STRENGTH = (
     Col("max_strain", 1, "1", "strain of that element"),
     Col("max_strain_element", 1, "1", "index of that element"),
     Col("broken_elements", 1, "1", "broken elements so far"),
-    Col("rupture_dissipation", 1, "J", "energy the broken elements held when they broke"),
+    TERMS["rupture_dissipation"].col,
 )
+
+#: the crossing audit's row (audit.crossings, or the candidate list of contact.cables)
+AUDIT = (Col("crossings", 1, "1", "audit.crossings: crossings of two cable elements so far"),)
+
+#: the cable contact's row (contact.cables: fe.contact.penalty.ContactKernel.rows)
+CONTACT = (TERMS["cable_contact_energy"].col, TERMS["cable_contact_dissipation"].col)
 
 
 def _offsets(cols) -> dict:

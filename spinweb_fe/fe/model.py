@@ -15,13 +15,16 @@ from typing import NamedTuple
 import numpy as np
 
 from meshgen.mesh import Mesh, lumped_mass
-from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.coil.levels import BUNDLES, Coil, no_coil
 from spinweb_fe.fe.forces import Links, make_links
-from spinweb_fe.fe.axis import Axis
+from spinweb_fe.fe.hub.axis import Axis
 from spinweb_fe.fe.choice import Choice, Param, registry
-from spinweb_fe.fe.rigid import Body
+from spinweb_fe.fe.hub.rigid import Body
 from spinweb_fe.fe.rupture import Strength, no_strength
 from spinweb_fe.fe.tidal import Environment, no_environment
+
+
+NO_BUNDLES = BUNDLES["none"].code
 
 
 def _nutates(tables):
@@ -31,13 +34,13 @@ def _nutates(tables):
     return None
 
 
-#: how the hub moves: the step loop's hub kind (:attr:`Model.hub_kind`: fe.axis or fe.body)
+#: how the hub moves: the step loop's hub kind (:attr:`Model.hub_kind`: fe.hub.axis or fe.hub.body)
 MOTIONS = registry(
-    Choice("fixed_axis", 0, "the hub turns about +z through the origin (fe.axis); the axis "
+    Choice("fixed_axis", 0, "the hub turns about +z through the origin (fe.hub.axis); the axis "
                             "holds it in place and reacts the out-of-plane loads",
            check=_nutates, analytic="the analytical model's hub (Eq. 4)"),
     Choice("free", 1, "a rigid body of six degrees of freedom with its tied nodes and held "
-                      "coil (fe.body, fe.rigid)",
+                      "coil (fe.hub.body, fe.hub.rigid)",
            keys=(Param("principal_inertia", "kg m^2", "pos", "free hub: principal moments "
                        "[I_x, I_y, I_z] about the hub-frame axes (z the spin axis), instead of "
                        "inertia and inertia_transverse", kind="vector"),)),
@@ -130,7 +133,7 @@ class Kernel(NamedTuple):
     hub: Hub
     coil: Coil
     bundles: object  # the coil when it has bundles, else None (numba compiles none of them)
-    devices: object  # the coil when it has reels or brakes (fe.payout), else None
+    devices: object  # the coil when it has reels or brakes (fe.coil.payout), else None
     strength: Strength
     env: Environment
 
@@ -161,7 +164,7 @@ class Model:
     strength : Strength
         Failure strain per element and rupture (fe.rupture; empty: no strength check).
     body : Body or None
-        The hub as a free rigid body (fe.rigid; None: the hub turns about a fixed axis).
+        The hub as a free rigid body (fe.hub.rigid; None: the hub turns about a fixed axis).
     env : Environment
         The gravity gradient (fe.tidal; mean motion 0: none).
     """
@@ -183,21 +186,21 @@ class Model:
     def kernel(self) -> Kernel:
         """The arrays of the step kernels, grouped by entity."""
         strength = self.strength if len(self.strength.fail) else None  # None: compiles none
-        bundles = self.coil if self.coil.bundle_code > 0 else None
-        devices = self.coil if self.coil.payout_code >= 2 else None
+        bundles = self.coil if self.coil.bundle_code != NO_BUNDLES else None
+        devices = self.coil if self.coil.device else None
         return Kernel(self.elements, self.links, self.nodes, self.hub, self.coil, bundles,
                       devices, strength, self.env)
 
     @property
     def hub_kind(self) -> tuple:
         """(axis, body): the hub as the step loop takes it, exactly one of them None:
-        fe.axis.Axis on a fixed axis, or the free hub's fe.rigid.Body. The loop's phases are
+        fe.hub.axis.Axis on a fixed axis, or the free hub's fe.hub.rigid.Body. The loop's phases are
         chosen by these types (fe.step)."""
         return (Axis(self.hub.j_eff), None) if self.body is None else (None, self.body)
 
     @property
     def free_hub(self) -> bool:
-        """The hub is a free rigid body (fe.body), not on a fixed axis (fe.axis)."""
+        """The hub is a free rigid body (fe.hub.body), not on a fixed axis (fe.hub.axis)."""
         return self.body is not None
 
     @property

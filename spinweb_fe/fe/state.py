@@ -7,12 +7,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.fe.axis import axis_pose, place_rigid
-from spinweb_fe.fe.body import body_pose
-from spinweb_fe.fe.coil import CoilState, coil_start, held_inertia, level_masses, place_held
+from spinweb_fe.fe.coil.devices import axis_pose, body_pose
+from spinweb_fe.fe.hub.axis import place_rigid
+from spinweb_fe.fe.coil.levels import CoilState, coil_start, held_inertia, level_masses, place_held
 from spinweb_fe.fe.layout import STEP_TERMS
-from spinweb_fe.fe.payout import locate_devices, start_devices
-from spinweb_fe.fe.rigid import RigidState, place_body, rigid_start
+from spinweb_fe.fe.coil.payout import locate_devices, start_devices
+from spinweb_fe.fe.hub.rigid import RigidState, place_body, rigid_start
 from spinweb_fe.fe.rupture import StrengthState, no_strength, strength_start
 
 
@@ -61,7 +61,7 @@ class State(NamedTuple):
         The masses the node update uses now: the model's for a free node, 0 for a node that
         moves with the hub (tied, held) or with its bundle, a bundle's mass on its spine node.
     hub : HubState
-    coil : spinweb_fe.fe.coil.CoilState
+    coil : spinweb_fe.fe.coil.levels.CoilState
     totals : (len(fe.layout.STEP_TERMS),) float64 [J]
         Each energy term of the step (fe.layout.STEP_TERMS) accumulated up to t_n.
     step : (1,) int64
@@ -70,7 +70,7 @@ class State(NamedTuple):
         t_n = n dt.
     strength : spinweb_fe.fe.rupture.StrengthState
         Broken elements, the strain peak since the last row, the rupture dissipation.
-    rigid : spinweb_fe.fe.rigid.RigidState or None
+    rigid : spinweb_fe.fe.hub.rigid.RigidState or None
         The free hub's body (None for a hub on a fixed axis).
     """
 
@@ -165,14 +165,14 @@ def initial_state(model, omega: float, spin: str = "all", tilt_rate: float = 0.0
                vel, 0.0, omega)
     inertia = hub.j_eff + held_inertia(coil.arm_ptr, cs.front, coil.level_ptr,
                                        coil.level_nodes, coil.level_ref, model.nodes.mass)
-    if coil.payout_code >= 2:  # a reel or a brake holds each arm's line at its tip
+    if coil.device:  # a reel or a brake holds each arm's line at its tip
         inertia += start_devices(coil, cs, model.nodes, mass, inv)
         locate_devices(coil, cs, axis_pose(0.0, omega))
     rigid = None
     if model.free_hub:
         rigid = rigid_start(model, cs, omega, tilt_rate)
         place_body(hub, coil, cs, rigid, pos, vel)
-        if coil.payout_code >= 2:
+        if coil.device:
             locate_devices(coil, cs, body_pose(rigid))
         inertia = float(rigid.inertia[2, 2])
     return State(pos, vel, mass, inv, HubState(np.zeros(1), np.array([float(omega)]),

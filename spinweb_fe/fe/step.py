@@ -2,22 +2,22 @@
 phases.
 
 Central differences with half-step velocities (Kratos / LS-DYNA style), for a hub on a fixed
-axis (:mod:`spinweb_fe.fe.axis`) or a free rigid hub (:mod:`spinweb_fe.fe.body`):
+axis (:mod:`spinweb_fe.fe.hub.axis`) or a free rigid hub (:mod:`spinweb_fe.fe.hub.body`):
 
     forces     f_n = internal forces at x_n (damping with v_{n-1/2}): element force
                vectors, then their sum per node (fe.forces; fe.rupture with a strength check)
     hub loads  the forces on the nodes that move with the hub (tied, held) and the control
                law; the hub's kick: omega_{n+1/2} (fixed axis) or V, Pi_{n+1/2} (free)
-    nodes      v_{n+1/2} = v_{n-1/2} + dt f_n / m, the cable-hub contact (fe.contact) of
+    nodes      v_{n+1/2} = v_{n-1/2} + dt f_n / m, the cable-hub contact (fe.hub.contact) of
                the nodes heading inside the rim, x_{n+1} = x_n + dt v_{n+1/2}: one pass
     hub drift  theta_{n+1} = theta_n + dt omega_{n+1/2}, or the free body's drift
     place      tied and held nodes move with the hub
-    release    the peel fronts the arms pull off (fe.coil), the bundles that are due
+    release    the peel fronts the arms pull off (fe.coil.levels), the bundles that are due
     record     a history row every ``rec.every`` steps (fe.layout's tables)
 
 Each phase is one call here, named once; which hub it runs is chosen by argument type:
-``advance`` takes the hub as two arguments, ``axis`` (fe.axis.Axis, None for a free hub) and
-``body`` (fe.rigid.Body, None on a fixed axis), and numba prunes a branch on an argument that
+``advance`` takes the hub as two arguments, ``axis`` (fe.hub.axis.Axis, None for a free hub) and
+``body`` (fe.hub.rigid.Body, None on a fixed axis), and numba prunes a branch on an argument that
 is None before typing it, so a scene compiles and runs the phases of its own hub only (as
 the strength pass and the threads are chosen). The phases that differ by hub are inlined at
 numba's IR level (``inline="always"``): their pairs of branches are pruned in ``advance``
@@ -32,21 +32,19 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.axis import (NodeMotion, axis_devices, axis_field, axis_field_work,
-                                axis_kick, axis_nodes, axis_reaction, axis_row, axis_start,
-                                axis_vector_row, place_rigid)
-from spinweb_fe.fe.body import (body_devices, body_drift, body_kick, body_nodes, body_release,
-                                body_row, body_start, body_state, twist)
-from spinweb_fe.fe.cable_contact import add_penalty, contact_resolve
-from spinweb_fe.fe.coil import (any_held, front_row, gather_bundles, open_bundles,
-                                held_moment, payout_allowed, place_held, release_fronts,
-                                scatter_bundles)
+from spinweb_fe.fe.coil.bundles import gather_bundles, open_bundles, scatter_bundles
+from spinweb_fe.fe.coil.levels import any_held, front_row, payout_allowed
+from spinweb_fe.fe.coil.payout import device_forces
+from spinweb_fe.fe.contact.penalty import add_penalty
+from spinweb_fe.fe.contact.touch import SERVICE, touch_begin, touch_end, touch_row
 from spinweb_fe.fe.forces import element_forces, node_forces
-from spinweb_fe.fe.payout import device_forces
-from spinweb_fe.fe.rigid import place_body
+from spinweb_fe.fe.hub.axis import NodeMotion, axis_start
+from spinweb_fe.fe.hub.body import body_start
+from spinweb_fe.fe.phases import (device_phase, field_loads, field_work, held_loads,
+                                  hub_drift, hub_loads, hub_now, hub_record, hub_row,
+                                  move_nodes, place_bound, place_coil, release, settle)
 from spinweb_fe.fe.rupture import record_strength, strength_pass
-from spinweb_fe.fe.touch import REACTIONS, SERVICE, touch_begin, touch_end, touch_row
-from spinweb_fe.fe.vectors import node_momenta, plane_stats
+from spinweb_fe.fe.vectors import node_momenta
 
 
 class Recording(NamedTuple):
@@ -94,7 +92,7 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
     """The internal forces at x_n into ``work.force`` (n, 3) (overwritten): every element's force
     vector (fe.forces, or the strength pass of fe.rupture for a scene with a failure strain;
     ``ss`` its state, ``dt`` the step), the elements a reel or brake holds at its departure
-    point as it holds them (fe.payout; ``devices`` the coil, None without one, ``cs`` its
+    point as it holds them (fe.coil.payout; ``devices`` the coil, None without one, ``cs`` its
     state), then their sum per node. Returns (strain energy, max tension, damping power).
 
     ``strength`` None (no strength check) and ``threads`` None (one thread) are decided by
@@ -112,171 +110,6 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
         tmax = max(tmax, dmax)
     node_forces(links, work, threads)
     return se, tmax, pdamp
-
-
-@njit(inline="always")
-def field_loads(axis, env, t, nodes, hub, coil, cs, bundles, mv, force, tidal, field, holding):
-    """The gravity gradient's loads at x_n on a scene with a fixed axis (fe.axis.axis_field;
-    a free hub takes the field in its own phases). The step calls it only for a scene with
-    the field."""
-    if axis is not None:
-        axis_field(env, t, nodes, hub.tied_idx, coil, cs, bundles, mv, force, tidal, field,
-                   holding)
-
-
-@njit(inline="always")
-def field_work(axis, env, field, tidal, mv, kick, dt):
-    """The gravity gradient's work over the step on a scene with a fixed axis [J] (a free
-    hub's is counted in its node pass). The step calls it only for a scene with the
-    field."""
-    w = 0.0
-    if axis is not None:
-        w = axis_field_work(field, tidal, mv, kick, dt)
-    return w
-
-
-@njit(inline="always")
-def held_loads(axis, coil, cs, pos, force, tau):
-    """The moment about a fixed axis of the forces on its held coil at x_n, and of a reel's
-    or brake's line at D (fe.payout), added to ``tau`` [N m]; a free hub counts its held
-    coil in its own loads. Called only while some arm is held: the coil's arrays are
-    handed over only then (each array a call or an inlined phase receives costs a
-    reference count, per step)."""
-    if axis is not None:
-        tau += held_moment(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, pos,
-                           force)
-        if coil.payout_code >= 2:
-            tau += cs.dev_moment[2]
-    return tau
-
-
-@njit(inline="always")
-def hub_loads(axis, body, hub, coil, cs, env, rs, law, pos, force, tau, hs, t, dt):
-    """Loads on the hub at x_n and its kick over the step: fe.axis.AxisKick (fixed axis:
-    ``tau`` the moment of the held coil, :func:`held_loads`) or fe.body.BodyKick (free
-    hub)."""
-    if axis is not None:
-        kick = axis_kick(hub.tied_idx, law, pos, force, tau, hs.rate[0], hs.inertia[0], t, dt)
-    if body is not None:
-        kick = body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt)
-    return kick
-
-
-@njit(inline="always")
-def move_nodes(axis, body, nodes, hub, mv, work, env, rs, kick, t, dt, sums, record,
-               threads):
-    """Kick, hub contact and drift of every free node in one pass. Returns (the kick with
-    the hub's rate after the contacts, contact dissipation [J], gravity-gradient work [J])."""
-    if axis is not None:
-        kick, diss = axis_nodes(nodes, hub, mv, kick, work, dt, sums, record, threads)
-        wgrav = 0.0
-    if body is not None:
-        kick, diss, wgrav = body_nodes(nodes, hub, mv, work.force, env, t, rs, kick, dt,
-                                       record, sums)
-    return kick, diss, wgrav
-
-
-@njit(inline="always")
-def hub_drift(axis, body, rs, kick, theta, dt):
-    """The hub's drift over the step; returns theta_{n+1} [rad]."""
-    if axis is not None:
-        theta = theta + dt * kick.rate_new
-    if body is not None:
-        theta = body_drift(rs, kick, dt, theta)
-    return theta
-
-
-@njit(inline="always")
-def place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, omega):
-    """The tied nodes move with the hub at theta_{n+1} (a free hub's held coil too)."""
-    if axis is not None:
-        place_rigid(pos, vel, hub.tied_idx, hub.tied_ref, theta, omega)
-    if body is not None:
-        place_body(hub, coil, cs, rs, pos, vel)
-
-
-@njit(inline="always")
-def place_coil(axis, coil, cs, pos, vel, theta, omega):
-    """The held coil moves with a fixed axis at theta_{n+1} (only while some arm is held)."""
-    if axis is not None:
-        place_held(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
-                   pos, vel, theta, omega)
-
-
-@njit(inline="always")
-def release(axis, body, elems, nodes, hub, coil, cs, rs, mv, j_eff, t, broken):
-    """Release the front levels the arms pull off at time t (fe.coil.release_fronts);
-    returns the fixed axis's effective inertia without them [kg m^2] (a free body
-    reassembles itself)."""
-    if axis is not None:
-        j_eff = release_fronts(coil, cs, elems, nodes, mv.pos, mv.mass, mv.inv_mass, j_eff, t,
-                               broken)
-    if body is not None:
-        body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken)
-    return j_eff
-
-
-@njit(inline="always")
-def device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs, t, dt):
-    """The reels and brakes at the end of a step (fe.payout; nothing without them)."""
-    if axis is not None:
-        axis_devices(devices, cs, elems, nodes, hub, mv, hs, t, dt)
-    if body is not None:
-        body_devices(devices, body, cs, elems, nodes, hub, rs, mv, hs, t, dt)
-
-
-@njit(inline="always")
-def hub_now(axis, body, rs, kick, j_eff):
-    """(rate omega_{n+1/2} about the hub axis [rad/s], effective inertia [kg m^2]) after the
-    step."""
-    if axis is not None:
-        out = (kick.rate_new, j_eff)
-    if body is not None:
-        out = body_state(rs)
-    return out
-
-
-@njit(inline="always")
-def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
-    """After the hub took the reaction of the contact's impulses (:func:`settle`): a
-    fixed axis turns by dt times its rate's change ``dw``, a free body has turned itself;
-    the tied and held nodes are placed again. Returns the hub's angle [rad]."""
-    if axis is not None:
-        theta = hs.angle[0] + dt * dw
-    if body is not None:
-        theta = twist(rs.quaternion, hs.angle[0])
-        hs.rate[0], hs.inertia[0] = body_state(rs)
-    place_bound(axis, body, hub, coil, cs, rs, pos, vel, theta, hs.rate[0])
-    if any_held(coil.arm_ptr, cs.front):
-        place_coil(axis, coil, cs, pos, vel, theta, hs.rate[0])
-    return theta
-
-
-@njit(inline="always")
-def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
-    """The contact's fail-safe at the step's end (fe.cable_contact.contact_resolve). When its
-    impulses pushed on the hub, the hub takes the reaction and places its tied and held
-    nodes again (:func:`reacted`), and the pairs those nodes have are tested again, at most
-    fe.touch.REACTIONS passes in all; in the last the reaction changes the hub's velocities
-    only, not its pose, so that nothing moves after the pass that tested it (the passes can
-    go on pushing a cable pinched between two of the hub's elements). Returns (fresh,
-    clean) for fe.touch.audit_step: the swept boxes stand; nothing crossed."""
-    fresh, clean = True, True
-    for k in range(REACTIONS):
-        place = k < REACTIONS - 1
-        if axis is not None:
-            n, left = contact_resolve(contact, pos, vel, inv_mass, dt, hs.rate, hs.inertia,
-                                      None, hs.angle[0], k > 0, place)
-        else:
-            n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
-                                      hs.angle[0], k > 0, place)
-        fresh = fresh and n == 0 and contact.spin[1] == 0.0
-        clean = fresh and left == 0
-        if contact.spin[1] == 0.0:
-            break
-        turned = contact.spin[1] if place else 0.0  # (a free body turned itself, or not)
-        hs.angle[0] = reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, turned, dt)
-    return fresh, clean
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -300,7 +133,7 @@ def probe_velocities(rec, k, vel, vprobe):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def record_arms(coil, cs, table, t, sa):
-    """Per arm at a record step (see fe.coil.front_row), into the slots ``sa`` of
+    """Per arm at a record step (see fe.coil.levels.front_row), into the slots ``sa`` of
     fe.layout.ARM: the front's (a reel's or brake's line at D) and the next outer level's arm
     coordinates, pinned on the rim (1/0), held back by the payout law (1/0), the paid-out
     length the law allows (NaN: none), and a reel's or brake's tension at D and work."""
@@ -309,33 +142,8 @@ def record_arms(coil, cs, table, t, sa):
         row = table[k]
         row[sa.front], row[sa.next], row[sa.rim], row[sa.held_back] = front_row(coil, cs, k, t)
         row[sa.allowed] = allowed if np.isfinite(allowed) else np.nan
-        row[sa.tension] = cs.dev_tension[k]
-        row[sa.work] = cs.dev_work[k]
-
-
-@njit(inline="always")
-def hub_record(axis, body, kick, env, t, hub, coil, cs, nodes, pos, force, vrow, vs):
-    """The vector row's distances from the hub plane at x_n and, on a fixed axis, the torque
-    the axis exerts on the hub (fe.axis.axis_reaction)."""
-    if axis is not None:
-        plane_stats(pos, nodes.inv_mass, np.zeros(3), np.array([0.0, 0.0, 1.0]), vrow, vs)
-        axis_reaction(env, t, hub, coil, cs, pos, force, vrow, vs)
-    if body is not None:
-        plane_stats(pos, nodes.inv_mass, kick.hull[0], kick.hull[1], vrow, vs)
-
-
-@njit(inline="always")
-def hub_row(axis, body, hub, coil, cs, nodes, rs, kick, sums, pos, theta, vec, k, vs):
-    """The hub's part of row k: (mean rate about its axis [rad/s], kinetic energy [J],
-    angular momentum about +z [N m s]) of the scalar row, and its part of the vector row
-    ``vec[k]`` (when recorded; slots ``vs``)."""
-    if axis is not None:
-        out = axis_row(kick, sums)
-        if vec is not None:
-            axis_vector_row(hub, coil, cs, nodes, pos, theta, out[0], kick.j_eff, vec[k], vs)
-    if body is not None:
-        out = body_row(rs, kick, sums, vec[k], vs)
-    return out
+        row[sa.brake_tension] = cs.dev_tension[k]
+        row[sa.brake_work] = cs.dev_work[k]
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -370,12 +178,12 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
     plane, and every free hub; without it numba compiles none of that). ``threads``: None
     for one thread (numba compiles no thread kernel), else the number of threads, which run
     the workspace's chunks; every thread count gives the same bits (fixed blocks, fixed
-    reduction order). ``audit`` (fe.touch.AuditKernel) and ``contact``
-    (fe.touch.ContactKernel), if given, the crossing audit and the cable-cable contact
-    (fe.touch: numba compiles none of it without them). ``tidal`` (n, 3): the gravity
-    gradient's node forces on a fixed axis (fe.axis.axis_field; None: a scene without the
+    reduction order). ``audit`` (fe.contact.touch.AuditKernel) and ``contact``
+    (fe.contact.touch.ContactKernel), if given, the crossing audit and the cable-cable contact
+    (fe.contact.touch: numba compiles none of it without them). ``tidal`` (n, 3): the gravity
+    gradient's node forces on a fixed axis (fe.hub.axis.axis_field; None: a scene without the
     field, or a free hub, and numba compiles none of it). Returns (status, rows): 0 ok, 1
-    non-finite, fe.touch.SERVICE: stopped after a step for the audit's list.
+    non-finite, fe.contact.touch.SERVICE: stopped after a step for the audit's list.
     """
     elems, nodes, hub, coil = model.elements, model.nodes, model.hub, model.coil
     env, strength = model.env, model.strength

@@ -16,9 +16,9 @@ and the history row of step n itself are not (the continued run writes them). It
   to, the resolved case as TOML (``case``) and its source file (``case_source``).
 
 The control laws keep no memory of their own, so nothing else is needed. The file is written
-to a temporary name and renamed (``os.replace``), so a run killed while writing leaves the
-previous checkpoint intact. Version 3 added the free hub's rigid body (``/state/rigid/...``)
-and the gravity-gradient work (``/state/totals/gravity_work``); version 4 holds the energy
+to a temporary name (made new, never through a link) and renamed (``os.replace``), so a run
+killed while writing leaves the previous checkpoint intact. Version 3 added the free hub's
+rigid body (``/state/rigid/...``) and the gravity-gradient work (``/state/totals/gravity_work``); version 4 holds the energy
 terms as one array in the order of fe.layout.STEP_TERMS (``/state/totals``) and no rigid
 body for a fixed axis, and reads version 3 files too; version 1 files (before the held coil)
 and version 2 files (before the free hub) are refused with a one-line reason.
@@ -39,6 +39,7 @@ from spinweb_fe import __version__
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.state import State, from_arrays, to_arrays
 from spinweb_fe.io.h5 import open_h5
+from spinweb_fe.io.safe import describe, kind, make_room
 
 CHECKPOINT_NAME = "checkpoint.h5"
 CHECKPOINT_FORMAT = "spinweb-checkpoint"
@@ -120,8 +121,8 @@ def write_checkpoint(path, ck: Checkpoint, on_error=None) -> Path:
         The checkpoint file.
     """
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    h5 = h5py.File(tmp, "w")
+    tmp = make_room(path.with_name(path.name + ".tmp"))
+    h5 = h5py.File(tmp, "x")  # O_EXCL: made new, never through a link
     try:
         _fill(h5, ck)
         h5.close()
@@ -222,6 +223,18 @@ def read_checkpoint(path) -> Checkpoint:
     return ck
 
 
+def check_run_entries(out_dir):
+    """Refuse (InputError, nothing changed) a folder whose result files are not the regular
+    files (and ``frames`` not the folder) that a run writes: a restart changes them in
+    place, and must not change what a link points to."""
+    for name, want in (("results.h5", "file"), ("web.pvd", "file"), (CHECKPOINT_NAME, "file"),
+                       ("frames", "folder")):
+        path = Path(out_dir) / name
+        if kind(path) not in (want, "missing"):
+            raise InputError(path, "", f"is {describe(path)}, not the {want} a run writes: "
+                             "spinweb does not follow it (nothing was changed)")
+
+
 def check_results_for_restart(out_dir, ck):
     """Check (read-only) that ``out_dir/results.h5`` can be continued from checkpoint ``ck``.
 
@@ -231,6 +244,7 @@ def check_results_for_restart(out_dir, ck):
         If the file is missing or unreadable, belongs to another run (``run_id``), or holds
         fewer history rows or frames than the checkpoint counts, or another time step.
     """
+    check_run_entries(out_dir)
     path = Path(out_dir) / "results.h5"
     if not path.is_file():
         raise InputError(path, "", "no such file: nothing to continue")

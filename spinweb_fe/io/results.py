@@ -31,8 +31,10 @@ from spinweb_fe.errors import RunError
 from spinweb_fe.io.checkpoint import CHECKPOINT_NAME
 from spinweb_fe.io.h5 import write_root_attrs
 from spinweb_fe.io.mesh import write_mesh_group
-from spinweb_fe.io.space import DiskFull, no_space
+from spinweb_fe.io.safe import NotOurs, check_regular, make_room, real_dir, same_file
+from spinweb_fe.io.space import DiskFull, no_space, too_large
 from spinweb_fe.io.vtk import append_pvd, write_pvd, write_vtu
+from spinweb_fe.record.energy import energy_floor, momentum_floor
 from spinweb_fe.record.history import COLUMNS
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.record.strength import strength_cells
@@ -57,9 +59,12 @@ def _growth(ds, arr) -> int:
 
 
 def _cause(exc) -> str:
-    """One line for a failed write: 'no space left on device' or 'I/O error: ...'."""
+    """One line for a failed write: 'no space left on device', 'file too large' or 'I/O
+    error: ...'."""
     if no_space(exc):
         return "no space left on device"
+    if too_large(exc):
+        return "file too large (the file-size limit, ulimit -f)"
     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     return f"I/O error: {text}"
 
@@ -130,14 +135,17 @@ class ResultWriter(Recorder):
 
     def _create(self, case, dt, write_frames):
         model = self.model
-        self.h5 = h5py.File(self.dir / "results.h5", "w")
+        # made new (O_EXCL), never through a link planted under its name
+        self.h5 = h5py.File(make_room(self.dir / "results.h5"), "x")
         self.run_id = uuid.uuid4().hex
+        floor = energy_floor(model)
         write_root_attrs(self.h5, case, dt=dt, steps=0, wall_time_s=0.0,
-                         dt_critical=model.dt_critical, status="running", run_id=self.run_id)
+                         dt_critical=model.dt_critical, status="running", run_id=self.run_id,
+                         energy_floor=floor, momentum_floor=momentum_floor(model, floor))
         write_mesh_group(self.h5.create_group("mesh"), model.mesh, model.nodes.mass)
         self.hist = self.h5.create_group("history")
         if write_frames:
-            (self.dir / "frames").mkdir(exist_ok=True)
+            real_dir(self.dir / "frames")  # a folder of this run's, not a link to another
             for old in (self.dir / "frames").glob("web_*.vtu"):
                 old.unlink()
             g = self.h5.create_group("frames")
@@ -151,7 +159,12 @@ class ResultWriter(Recorder):
         self.h5.flush()
 
     def _reopen(self, case, ck, write_frames):
-        self.h5 = h5py.File(self.dir / "results.h5", "r+")
+        path = self.dir / "results.h5"
+        check_regular(path, missing_ok=False)
+        self.h5 = h5py.File(path, "r+")
+        if not same_file(path, self.h5.id.get_vfd_handle()):  # replaced by a link meanwhile
+            self.h5.close()
+            raise NotOurs(0, f"{path} changed while it was opened: not continued")
         self.run_id = ck.run_id
         self.hist = self.h5.require_group("history")
         for ds in self.hist.values():
@@ -162,7 +175,7 @@ class ResultWriter(Recorder):
             for ds in self.frames.values():
                 ds.resize(ck.frames, axis=0)
             self.pvd_entries = list(ck.pvd_entries)
-            (self.dir / "frames").mkdir(exist_ok=True)
+            real_dir(self.dir / "frames")
             keep = {f for _, f in self.pvd_entries}
             for old in (self.dir / "frames").glob("web_*.vtu"):
                 if f"frames/{old.name}" not in keep:
@@ -419,7 +432,9 @@ class ResultWriter(Recorder):
             self._pool.shutdown()
             self._pool = None
         if self.h5:
-            self.h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
-            self._ds = {}
-            self.h5.close()
-            self.h5 = None
+            h5, self.h5, self._ds = self.h5, None, {}
+            try:
+                h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
+                h5.close()
+            except (OSError, RuntimeError) as exc:  # HDF5's last flush: one line, not its own
+                raise RunError(f"cannot write to {self.dir}: {_cause(exc)}") from None

@@ -1,20 +1,25 @@
 """ParaView files: VTU line meshes (meshio) and PVD collections.
 
 A VTU file is written atomically (temporary file in the same folder, then rename) with the
-permissions the umask gives a new file. A PVD collection is written whole once and then
-grown in place, one ``DataSet`` line per frame (:func:`append_pvd`): the cost of a frame
+permissions the umask gives a new file; temporary files are made new (``O_EXCL``), never
+through a link, and the collection is grown only if it is a regular file. A PVD collection
+is written whole once and then grown in place, one ``DataSet`` line per frame (:func:`append_pvd`): the cost of a frame
 does not grow with the number of frames, and the file is a valid collection after every
 call (a failed append puts the previous closing lines back).
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import stat
 import tempfile
 from pathlib import Path
 
 import meshio
 import numpy as np
+
+from spinweb_fe.io.safe import write_new
 
 PVD_HEAD = ('<?xml version="1.0"?>\n'
             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
@@ -67,8 +72,9 @@ def write_pvd(path: Path, entries):
     """Write a PVD collection atomically (temp file + rename). entries: [(time, relative file)]."""
     path = Path(path)
     tmp = path.with_suffix(".pvd.tmp")
-    try:
-        tmp.write_text(PVD_HEAD + "".join(_dataset(t, f) for t, f in entries) + PVD_TAIL)
+    try:  # a new file, never through a link planted under its name
+        write_new(tmp, (PVD_HEAD + "".join(_dataset(t, f) for t, f in entries)
+                        + PVD_TAIL).encode())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -81,11 +87,20 @@ def append_pvd(path: Path, entry):
     The closing lines are overwritten by the new entry and the closing lines again, in one
     write; if that fails (a full disk), the closing lines are put back where they were, so
     the file stays the valid collection it was. A file that does not end as written by
-    :func:`write_pvd` is refused (ValueError).
+    :func:`write_pvd` is refused (ValueError), and so is one that is not a regular file
+    (a link is not followed, a FIFO not waited for).
     """
     tail = PVD_TAIL.encode()
-    fd = os.open(path, os.O_RDWR)
     try:
+        fd = os.open(path, os.O_RDWR | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ENOENT:
+            raise
+        raise ValueError(f"{path}: not a collection written by spinweb ({exc.strerror})") \
+            from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise ValueError(f"{path}: not a collection written by spinweb (not a file)")
         end = os.lseek(fd, 0, os.SEEK_END)
         pos = end - len(tail)
         if pos < 0 or os.pread(fd, len(tail), pos) != tail:

@@ -120,6 +120,10 @@ LIMITS = {lim.key: lim for lim in (
 
 #: the thresholds' defaults (``require`` aside: the overall verdict's criteria)
 DEFAULTS = {k: lim.default for k, lim in LIMITS.items() if k != "require"}
+#: the criteria with a limit that every run of a scene has (not those of some runs only: the
+#: out-of-plane flatness, the crossing audit): a convergence study's default margins
+GENERAL = tuple(c.name for c in CRITERIA.values() if c.limit and c.applies in (
+    "all", "FE", "deployed runs", "all but the gravity gradient"))
 #: the criteria a design requires when its file names none
 REQUIRED = tuple(name for name, c in CRITERIA.items() if c.required)
 

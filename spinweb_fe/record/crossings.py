@@ -1,8 +1,8 @@
 """The crossing audit (``[audit] crossings = true``): every time two cable elements pass
 through each other during a run, counted and logged (issue #26; docs/results.md).
 
-The step loop tests each step itself (fe.touch: after each step, the candidate element
-pairs with the exact continuous test of :func:`spinweb_fe.fe.crossing.pair_crossings`; the
+The step loop tests each step itself (fe.contact.touch: after each step, the candidate element
+pairs with the exact continuous test of :func:`spinweb_fe.fe.contact.crossing.pair_crossings`; the
 nodes move on straight lines over a step, as the central-difference update moves them), and
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
 phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
@@ -26,13 +26,18 @@ sign of the signed volume of the two elements' ends after it.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
-from spinweb_fe.fe.crossing import (RIGID, candidate_pairs, pair_distances, sorted_in,
-                                    swept_boxes)
-from spinweb_fe.fe.touch import LOG_PER_STEP, REBUILD, AuditKernel, audit_step
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in, swept_boxes
+from spinweb_fe.fe.contact.crossing import pair_distances
+from spinweb_fe.fe.layout import AUDIT, named
+from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
+from spinweb_fe.record.feature import Feature, copied
+
+log = logging.getLogger(__name__)
 
 #: largest default broad-phase skin [m]
 SKIN = 0.5
@@ -68,8 +73,9 @@ def held_nodes(model, state) -> np.ndarray:
     return held
 
 
-class CrossingAudit:
-    """Counts and logs the crossings of a run's elements (see the module's text).
+class CrossingAudit(Feature):
+    """Counts and logs the crossings of a run's elements (see the module's text); the
+    candidate list the cable contact shares (a feature: hook ``audit``).
 
     Attributes
     ----------
@@ -77,12 +83,14 @@ class CrossingAudit:
         Crossings so far.
     log : dict of lists
         ``time`` [s], ``element_a``, ``element_b``, ``direction`` (+1 / -1) of each crossing
-        (at most :data:`LOG_PER_STEP` per step).
+        (at most fe.contact.touch.LOG_PER_STEP per step).
     rebuilds : int
         Broad-phase builds so far.
     """
 
     name = "crossings"
+    hook = "audit"
+    layout = AUDIT
 
     def __init__(self, model, skin: float | None = None, touch: float = TOUCH, rows: int = 1):
         self.model = model
@@ -96,14 +104,15 @@ class CrossingAudit:
         self.ignored = np.zeros(0, np.int64)
         self._codes = None
         self._rows = rows
-        self.kernel = None
+        self._restored = None
+        self.kernel_data = None
 
     def _code(self, pairs):
         return pairs[:, 0] * np.int64(len(self.elem_nodes)) + pairs[:, 1]
 
     def build(self, state, rows: int | None = None):
         """The candidate list at the state's positions (and the pairs left out), and the
-        step loop's view of it (:attr:`kernel`, with room for ``rows`` history rows a
+        step loop's view of it (:attr:`kernel_data`, with room for ``rows`` history rows a
         call)."""
         pos = state.node_pos
         bound = held_nodes(self.model, state)
@@ -129,23 +138,49 @@ class CrossingAudit:
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
                                -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
-        self._rows = rows or self._rows
-        old = self.kernel
-        pos0 = old.pos0 if old is not None else np.zeros_like(pos)
         box = np.zeros((len(self.elem_nodes), 6))
         swept_boxes(self.elem_nodes, active, pos, pos, box)
-        self.kernel = AuditKernel(
-            self.elem_nodes, self.pairs, self.ignored, active, ref,
-            np.array(state.coil.front, np.int64), pos0, box, self.skin,
-            np.array([self.count], np.int64), np.zeros(LOG_ROOM), np.zeros(LOG_ROOM, np.int64),
-            np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64),
-            np.zeros(self._rows), np.zeros(1))
+        self._rows = rows or self._rows
+        self._make(active, ref, np.array(state.coil.front, np.int64), box)
         self.rebuilds += 1
 
-    def take(self, state) -> None:
+    def _make(self, active, ref, fronts, box):
+        old = self.kernel_data
+        pos0 = old.pos0 if old is not None else np.zeros((len(ref), 3))
+        self.kernel_data = AuditKernel(
+            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, box,
+            self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
+            np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
+            np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
+            np.zeros(1))
+
+    # -- the feature's hooks (record.feature) --
+
+    def prepare(self, state, rows: int) -> None:
+        """The list at the run's first state, or the one a checkpoint's memory held."""
+        self._rows = rows
+        k = self.kernel_data
+        if self._restored is not None:
+            self._make(*self._restored)
+            self._restored = None
+        elif k is None:
+            self.build(state, rows)
+        elif k.row_count.shape[0] < rows:  # (built before, with room for fewer rows)
+            self._make(k.active, k.ref, k.fronts, k.box)
+
+    def kernel(self, hooks: dict):
+        return self.kernel_data
+
+    def trial(self, kernel, hooks: dict):
+        return copied(kernel)
+
+    def columns(self, kernel, rec, nrec: int) -> dict:
+        return named(kernel.row_count[:nrec, None].astype(float), AUDIT)
+
+    def service(self, state) -> None:
         """After a call of the step loop: its log into :attr:`log`, and a rebuild if the
         list went stale."""
-        k = self.kernel
+        k = self.kernel_data
         n = int(k.n_log[0])
         if n:
             self.log["time"].extend(k.log_time[:n].tolist())
@@ -157,14 +192,20 @@ class CrossingAudit:
         if k.moved[0] > REBUILD * self.skin or not np.array_equal(k.fronts, state.coil.front):
             self.build(state)
 
+    take = service
+
+    def write(self, h5) -> None:
+        write_table(h5, self)
+        log.info("crossings: %d (broad phase built %d times)", self.count, self.rebuilds)
+
     def step(self, pos0, state, t0: float, dt: float):
         """The crossings of the step that took the nodes from ``pos0`` to the state's
         positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
         the list went stale (scripted motions: tests)."""
-        self.kernel.pos0[:] = pos0
-        audit_step(self.kernel, state.node_pos, float(state.hub.angle[0]), t0, dt,
+        self.kernel_data.pos0[:] = pos0
+        audit_step(self.kernel_data, state.node_pos, float(state.hub.angle[0]), t0, dt,
                    np.asarray(state.coil.front, np.int64))
-        self.take(state)
+        self.service(state)
 
     def table(self) -> dict:
         """The log as arrays (name -> (K,) array)."""
@@ -174,14 +215,34 @@ class CrossingAudit:
                 "direction": np.asarray(self.log["direction"], np.int64)}
 
     def memory(self) -> dict:
-        return {"count": np.array([self.count], np.int64), **self.table(),
-                "ignored": self.ignored.copy()}
+        """The count, the log, and the list as the step loop holds it (its pairs, those
+        left out, the positions it was built at, its fronts and boxes), so that a restart
+        tests the same pairs as the run would have, and rebuilds where it would have."""
+        k = self.kernel_data
+        out = {"count": np.array([self.count], np.int64), **self.table(),
+               "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds])}
+        if k is not None:
+            out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
+                       codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
+                       box=k.box)
+        return {name: np.array(v, copy=True) for name, v in out.items()}
 
     def restore(self, memory: dict) -> None:
         self.count = int(memory["count"][0])
         for k in self.log:
             self.log[k] = list(np.asarray(memory[k]).tolist())
         self.ignored = np.asarray(memory["ignored"], np.int64)
+        self.rebuilds = int(np.asarray(memory.get("rebuilds", [0])).ravel()[0])
+        if "pairs" not in memory:  # (a checkpoint of the audit before its list was kept)
+            return
+        self.pairs = np.asarray(memory["pairs"], np.int64).reshape(-1, 2)
+        self.pair_codes = np.asarray(memory["pair_codes"], np.int64)
+        self.pair_dist = np.asarray(memory["pair_dist"], np.float64)
+        self._codes = np.asarray(memory["codes"], np.int64)
+        self._restored = (np.asarray(memory["active"], np.int8),
+                          np.asarray(memory["ref"], np.float64).reshape(-1, 3),
+                          np.asarray(memory["fronts"], np.int64),
+                          np.asarray(memory["box"], np.float64).reshape(-1, 6))
 
 
 #: units and meaning of the /crossings table's columns

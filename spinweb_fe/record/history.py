@@ -7,7 +7,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spinweb_fe.fe.layout import ENERGY, ROW, STEP_TERMS, VECTOR, row_columns
+from spinweb_fe.fe.layout import (AUDIT, CONTACT, DEVICE, ENERGY, ROW, STEP_TERMS, VECTOR,
+                                  row_columns)
+
+#: the tables of the features' own columns (fe.layout)
+FEATURE_TABLES = (DEVICE, AUDIT, CONTACT)
 
 
 class Column(NamedTuple):
@@ -34,8 +38,6 @@ COLUMNS = {
     "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
     "payout_allowed": Column("m", "gate or reel (payout = gate or rate): the paid-out length "
                                   "the law allows"),
-    "brake_tension": Column("N", "reel or brake: the line tension at each arm's departure "
-                                 "point"),
     "max_strain": Column("1", "failure strain given: strain of the most utilised element, "
                               "the largest over the steps since the previous row"),
     "max_strain_element": Column("1", "failure strain given: index of that element"),
@@ -43,14 +45,15 @@ COLUMNS = {
     "utilisation": Column("1", "failure strain given: largest strain / failure strain over "
                                "the elements and the steps since the previous row"),
     "broken_elements": Column("1", "rupture: number of broken elements"),
-    "crossings": Column("1", "audit.crossings: crossings of two cable elements so far"),
+    **{c.name: Column(c.units, c.doc) for table in FEATURE_TABLES for c in table},
     **{c.name: Column(c.units, c.doc) for c in VECTOR},
 }
 #: columns that only some scenes or models have (a held coil, a rate payout, a failure
-#: strain, rupture, an energy term a scene may lack, the vector row)
-OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "brake_tension", "max_strain",
-             "max_strain_element", "max_strain_arm", "utilisation", "broken_elements", "crossings")
-            + tuple(t.name for t in ENERGY if t.present is not None)
+#: strain, rupture, an energy term a scene may lack, a feature's columns, the vector row)
+OPTIONAL = (("payout_front", "payout_speed", "payout_allowed", "max_strain",
+             "max_strain_element", "max_strain_arm", "utilisation", "broken_elements")
+            + tuple(t.name for t in ENERGY if not t.step or t.present is not None)
+            + tuple(c.name for table in FEATURE_TABLES for c in table)
             + tuple(c.name for c in VECTOR))
 #: name -> SI unit of every history dataset
 HISTORY_UNITS = {name: c.units for name, c in COLUMNS.items()}

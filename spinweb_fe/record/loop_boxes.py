@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.crossing import GRID_SPAN, grid_entries
+from spinweb_fe.fe.contact.broad import GRID_SPAN, grid_entries
 
 #: the broad phase widens its grid cells until a loop's box sits in at most this many
 #: cells on average (a few giant loops would otherwise fill the grid)

@@ -15,7 +15,8 @@ import logging
 
 import numpy as np
 
-from spinweb_fe.record.recorders import Recorder
+from spinweb_fe.fe.layout import STRENGTH, named
+from spinweb_fe.record.feature import Feature
 
 log = logging.getLogger(__name__)
 
@@ -55,14 +56,24 @@ def strength_cells(model, strain: np.ndarray, broken) -> dict:
     return {"utilisation": np.where(broken, np.nan, util), "broken": broken.astype(np.int8)}
 
 
-class StrengthMonitor(Recorder):
-    """Warns once in the run log when the utilisation first exceeds 1 (a recorder; its memory
-    keeps the warning from repeating after a restart)."""
+class StrengthCheck(Feature):
+    """The strength check of a scene with a failure strain (a feature; its kernel data is
+    the Model's ``strength``, its state the State's): the history columns of the step's
+    strength rows (fe.layout.STRENGTH, :func:`strength_columns`), and a warning in the run
+    log when the utilisation first exceeds 1 (its memory keeps the warning from repeating
+    after a restart)."""
 
     name = "strength"
+    layout = STRENGTH
+    state_fields = ("strength/broken", "strength/peak", "strength/dissipation",
+                    "strength/count")
 
-    def __init__(self):
+    def __init__(self, model=None):
+        self.model = model
         self.warned = False
+
+    def columns(self, kernel, rec, nrec: int) -> dict:
+        return strength_columns(self.model, named(rec.strength_table[:nrec], STRENGTH))
 
     def rows(self, rows):
         u = rows.get("utilisation")

@@ -230,16 +230,23 @@ def torque_impulse(h, prescribed: bool = False) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(d_imp)])
 
 
-def momentum_error(h, prescribed: bool = False) -> float:
+def momentum_error(h, prescribed: bool = False, floor: float = 0.0) -> float:
     """Largest |K - K0 - torque impulse| over the rows (:func:`torque_impulse`; a free
-    hub's torque acts about its axis: its +z part counts), relative to max |K|."""
+    hub's torque acts about its axis: its +z part counts), relative to max |K| (or
+    ``floor``, record.energy.momentum_floor, if larger: a scene at rest)."""
     K = np.asarray(h["angular_momentum"], dtype=float)
     imp = torque_impulse(h, prescribed)
     if "hub_axis" in h:  # the z part of each row's impulse
         axis_z = np.asarray(h["hub_axis"])[:, 2]
         imp = np.concatenate([[0.0], np.cumsum(np.diff(imp) * 0.5 * (axis_z[1:] + axis_z[:-1]))])
-    scale = max(float(np.max(np.abs(K))), 1e-300)
+    scale = max(float(np.max(np.abs(K))), floor, 1e-300)
     return float(np.max(np.abs(K - K[0] - imp))) / scale
+
+
+def floors_of(attrs) -> dict:
+    """:func:`judge`'s energy and momentum floors from a result file's root attributes
+    (``energy_floor``, ``momentum_floor``; 0 in files written before them)."""
+    return {name: float(attrs.get(name, 0.0)) for name in ("energy_floor", "momentum_floor")}
 
 
 def case_terms(case: dict) -> dict:
@@ -261,7 +268,8 @@ def case_terms(case: dict) -> dict:
 def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "completed",
           slack_share: float | None = None, failure_strain: float | None = None,
           out_of_plane: bool = False, gravity: bool = False, prescribed: bool = False,
-          t_end: float | None = None, require=None) -> list:
+          t_end: float | None = None, require=None, energy_floor: float = 0.0,
+          momentum_floor: float = 0.0) -> list:
     """The criteria of one run (see the module's doc).
 
     Parameters
@@ -293,6 +301,9 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
         The run's end time: a run that stopped early has completed t[-1] / t_end of it.
     require : sequence of str or None
         The criteria the overall verdict asks to pass (default: record.criteria.REQUIRED).
+    energy_floor, momentum_floor : float [J], [N m s]
+        The least scales of the energy and momentum audits (record.energy.energy_floor;
+        :func:`floors_of` a result file): a scene at rest is judged against them.
     """
     lim = limits_of(limits)
     t = np.asarray(h["time"], dtype=float)
@@ -328,14 +339,14 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
         out.append(_flatness(t, h, full, lim))
     else:
         out.append(Criterion("flatness", None, detail="the run stays in its plane"))
-    err = balance_error(h)
+    err = balance_error(h, floor=energy_floor)
     out.append(Criterion("energy", err <= lim["energy"], err, lim["energy"],
                          time=math.nan if err <= lim["energy"] else float(t[-1])))
     if gravity:
         out.append(Criterion("momentum", None, detail="the gravity gradient's torque is not "
                              "recorded"))
     else:
-        m = momentum_error(h, prescribed)
+        m = momentum_error(h, prescribed, momentum_floor)
         out.append(Criterion("momentum", m <= lim["momentum"], m, lim["momentum"],
                              time=math.nan if m <= lim["momentum"] else float(t[-1])))
     out.append(_tangled(t, h, lim))

@@ -20,21 +20,16 @@ import numpy as np
 
 from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import InputError, RunError, RunInterrupted
-from spinweb_fe.fe.cable_contact import CableContact, cable_radius
 from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
                                       write_checkpoint)
 from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
 from spinweb_fe.io.results import ResultWriter
 from spinweb_fe.io.space import DiskGuard
 from spinweb_fe.record import verdict
-from spinweb_fe.record.crossings import CrossingAudit
-from spinweb_fe.record.crossings import write_table as write_crossings
-from spinweb_fe.record.linking import LinkingMonitor
-from spinweb_fe.record.linking import write_group as write_linking
 from spinweb_fe.record.recorders import Recorder
 from spinweb_fe.run.estimate import (check_budget, check_memory, estimate, measure_rate)
-from spinweb_fe.run.loop import (Schedule, choose_threads, records_vectors, requested_threads,
-                                 simulate)
+from spinweb_fe.run.features import check_features, features_of
+from spinweb_fe.run.loop import Schedule, choose_threads, requested_threads, simulate
 from spinweb_fe.run.terminal import Progress, StopSignals
 
 log = logging.getLogger(__name__)
@@ -130,7 +125,10 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
         with FolderLock(out_dir):
             with stop.immediate():  # set-up writes nothing: a signal stops it at once
                 mesh, model, control, state, dt = prepare(case)
-                check_touch(case, model, state)
+                check_features(case, model, state)
+                features = features_of(model, state, case)
+                if checkpoint_dt > 0:
+                    _check_checkpointable(case, features)
                 if resume is not None:
                     state = _resumed_state(case, model, dt, resume)
                 threads = choose_threads(model, threads)
@@ -140,7 +138,8 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
                     sys.stderr.write("step loop: loading it from numba's cache, or compiling "
                                      "it (the first run of a kind of scene: 10-20 s) ...\r")
                     sys.stderr.flush()
-                rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every)
+                rate, compile_s = measure_rate(model, control, state, dt, threads, rec_every,
+                                               features)
                 if notice:
                     sys.stderr.write("\x1b[2K")  # clear that line
                 est = estimate(case, model, dt, step0, rate, checkpoint_dt > 0)
@@ -162,7 +161,7 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
                 aside.done = True
             try:
                 res = _run(case, out_dir, model, control, state, dt, stop, resume, threads,
-                           progress, checkpoint_dt, aside)
+                           progress, checkpoint_dt, aside, features)
             finally:
                 if not aside.done:  # stopped before its first rows: the earlier result back
                     aside.restore()
@@ -176,51 +175,8 @@ def run_case(case, out_dir, progress=True, checkpoint_dt=0.0, resume=None, threa
     return res
 
 
-def check_touch(case, model, state) -> None:
-    """Refuse what the crossing audit and the cable contact cannot do (InputError): a scene
-    that cannot leave the plane (its cables cannot cross, and the layers of a planar fold
-    coincide, where contact is undefined), a contact radius above half the layer gap
-    (stacked layers would start inside each other's reach; a radius that is not positive
-    the case's schema refuses), and contact on a scene whose elements start closer than
-    the audit's touch distance (coincident layers, or a displacement perturbation that
-    moved stacked layers through each other: contact between them is undefined)."""
-    touching, auditing = case.contact.cables, case.audit.crossings
-    if not (touching or auditing):
-        return
-    key = "contact.cables" if touching else "audit.crossings"
-    if not records_vectors(model, state):
-        why = ", and the coincident layers of a planar fold have no contact defined" \
-            if touching else ""
-        raise InputError(case.source, key, "the scene cannot leave the plane (fixed axis, no "
-                         "layer gap, no perturbation, no gravity gradient): its cables cannot "
-                         f"cross{why}; give fold.layer_gap or a perturbation")
-    if touching:
-        radius, gap = cable_radius(case, model), case.fold.layer_gap
-        given = case.contact.cable_radius is not None
-        name = "contact.cable_radius" + ("" if given else " (default sqrt(A / pi))")
-        if gap > 0.0 and radius > 0.5 * gap:
-            raise InputError(case.source, "contact.cable_radius",
-                             f"{name} {radius:.6g} m is more than half fold.layer_gap "
-                             f"({gap:.6g} m): stacked layers would start in contact")
-        start = CrossingAudit(model, case.audit.skin, case.audit.touch)
-        start.build(state)
-        if len(start.ignored):
-            key, why = "fold.layer_gap", "the layer gap is below audit.touch"
-            if gap == 0.0:
-                why = "the fold's layers coincide; give fold.layer_gap"
-            elif case.perturbation.z_amplitude != 0.0:
-                key = "perturbation.z_amplitude"
-                why = ("the perturbation moves stacked layers unequally (the tied nodes "
-                       "stay) and puts them through each other; perturb by velocity "
-                       "(perturbation.vz_amplitude) instead")
-            raise InputError(case.source, key,
-                             f"{len(start.ignored)} pairs of elements start closer than "
-                             f"audit.touch ({start.touch:g} m), where contact is undefined: "
-                             f"{why}")
-
-
 def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progress,
-         checkpoint_dt, aside):
+         checkpoint_dt, aside, features):
     """The writers and the event loop, in a folder this run holds."""
     guard = DiskGuard(out_dir)
     try:
@@ -237,19 +193,11 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     schedule = Schedule(case.time.end, case.output.history_dt, case.output.frame_dt,
                         checkpoint_dt)
     status = "failed"
-    audit, touching = case.audit, case.contact.cables
-    crossings = CrossingAudit(model, audit.skin, audit.touch) if audit.crossings or touching \
-        else None
-    contact = CableContact(model, cable_radius(case, model), case.contact.stiffness,
-                           case.contact.friction) \
-        if touching else None
-    linking = LinkingMonitor(model.mesh, state) if audit.crossings else None
-    recorders += [linking] if linking is not None else []
     try:
-        writer.set_attrs(threads=threads)
-        res = simulate(model, control, state, dt, schedule, recorders, stop=stop,
-                       resume=None if resume is None else resume.memory, threads=threads,
-                       crossings=crossings, contact=contact)
+        writer.set_attrs(threads=threads, features=" ".join(f.name for f in features))
+        res = simulate(model, control, state, dt, schedule, recorders, features=features,
+                       stop=stop, resume=None if resume is None else resume.memory,
+                       threads=threads)
         status = res.status
         if res.status != "completed":
             status = f"{res.status} at t = {float(state.time[0]):.6g} s"
@@ -267,47 +215,22 @@ def _run(case, out_dir, model, control, state, dt, stop, resume, threads, progre
     finally:
         bar.end(status)  # the progress line ends even when the loop raised
         guard.release()  # room for the last attributes and the close
-        if crossings is not None:
-            _crossing_table(writer, crossings, contact)
-        if linking is not None:
-            _linking_group(writer, linking)
+        _write_features(writer, features)
         _judge(writer, case, model, state, status)
         _finish(writer, steps=int(state.step[0]), status=status)
     return res
 
 
-def _crossing_table(writer, crossings, contact=None):
-    """The crossing audit's /crossings table into results.h5, with the cable contact's radius
-    and deepest penetration [m] and its fail-safe's impulses (of them, those of the passes
-    after a reaction of the hub) as attributes when it ran (a failure is reported)."""
-    try:
-        writer.drain()
-        write_crossings(writer.h5, crossings)
-        if contact is not None:
-            writer.h5["crossings"].attrs["contact_radius"] = contact.radius
-            writer.h5["crossings"].attrs["deepest_penetration"] = contact.deepest_run
-            writer.h5["crossings"].attrs["contact_impulses"] = contact.impulses
-            writer.h5["crossings"].attrs["impulses_after_reactions"] = \
-                contact.impulses_after_reactions
-        writer.h5.flush()
-        log.info("crossings: %d (broad phase built %d times)", crossings.count,
-                 crossings.rebuilds)
-    except Exception as exc:  # noqa: BLE001 - the result stays; the table is missing
-        log.error("could not write the crossings: %s", exc)
-
-
-def _linking_group(writer, linking):
-    """The linking check's /linking group into results.h5 (a failure is reported)."""
-    try:
-        writer.drain()
-        write_linking(writer.h5, linking)
-        writer.h5.flush()
-        s = linking.summary()
-        log.info("linking: %d cell pairs linked at the end, %d changes of a linking number%s",
-                 s["linked"], s["changed_total"], "" if not s["changed_total"] else
-                 f" (the first at t = {s['first_change_time']:.6g} s)")
-    except Exception as exc:  # noqa: BLE001 - the result stays; the group is missing
-        log.error("could not write the linking check: %s", exc)
+def _write_features(writer, features):
+    """Each feature's part of results.h5 (record.feature: a group, attributes); a failure is
+    reported and leaves the rest of the file as it is."""
+    for f in features:
+        try:
+            writer.drain()
+            f.write(writer.h5)
+            writer.h5.flush()
+        except Exception as exc:  # noqa: BLE001 - the result stays; the part is missing
+            log.error("could not write the %s: %s", f.name, exc)
 
 
 def _judge(writer, case, model, state, status):
@@ -325,7 +248,8 @@ def _judge(writer, case, model, state, status):
             h, verdict.reach_of(model.mesh), model.mesh.hub_radius, status=status,
             slack_share=verdict.slack_share(state.node_pos, model.elements.nodes,
                                             model.elements.rest_len, broken),
-            out_of_plane="out_of_plane_max" in h, **verdict.case_terms(case.to_dict()))
+            out_of_plane="out_of_plane_max" in h, **verdict.case_terms(case.to_dict()),
+            **verdict.floors_of(writer.h5.attrs))
         verdict.write_group(writer.h5, crits)
         writer.h5.flush()
         lines = verdict.report(crits)
@@ -349,6 +273,14 @@ def _finish(writer, **attrs):
         log.error("could not write the final attributes of results.h5: %s", exc)
     finally:
         writer.close()
+
+
+def _check_checkpointable(case, features):
+    """Refuse checkpoints of a run with a feature that cannot be continued from one."""
+    for f in features:
+        if not f.checkpointable:
+            raise InputError("--checkpoint-dt", "", f"the run's {f.name} cannot be continued "
+                             f"from a checkpoint ({case.source}): run it without one")
 
 
 def _resumed_state(case, model, dt, ck):

@@ -8,6 +8,7 @@ case's own model, a few milliseconds of steps), memory, output bytes and frames;
 - a day of wall time (``WALL_BUDGET_S``),
 - ``MEMORY_FRACTION`` = 80 % of the machine's memory (or of the container's limit),
 - the free space of the disk that holds the result folder,
+- the file-size limit (``ulimit -f``) for results.h5,
 
 unless it is forced (``spinweb run --force``).
 """
@@ -21,7 +22,7 @@ from typing import NamedTuple
 
 from spinweb_fe.errors import InputError
 from spinweb_fe.io.results import CHUNK_VALUES
-from spinweb_fe.io.space import fmt_bytes, free_bytes
+from spinweb_fe.io.space import MARGIN, RESERVE, fmt_bytes, free_bytes, size_limit
 from spinweb_fe.run.loop import time_steps
 
 WALL_BUDGET_S = 86400.0     # a day
@@ -46,6 +47,7 @@ class Estimate(NamedTuple):
     output: float           # results.h5, frames and checkpoint
     rows: int
     frames: int
+    results_h5: float = 0.0  # the part of ``output`` in results.h5 (the largest file)
 
     def lines(self, threads) -> list:
         """Two log lines: the size, and the cost."""
@@ -107,12 +109,14 @@ def _check_memory(case, need, elements, force):
                          f"{fmt_bytes(limit / MEMORY_FRACTION)} ({FORCE_HINT})")
 
 
-def measure_rate(model, control, state, dt, threads, rec_every) -> tuple:
-    """(element-updates/s of this model's step loop on this machine, the seconds it took to
-    compile the loop or load it from the cache)."""
+def measure_rate(model, control, state, dt, threads, rec_every, features=None) -> tuple:
+    """(element-updates/s of this model's step loop with the run's ``features`` (None: the
+    model's) on this machine, the seconds it took to compile the loop or load it from the
+    cache)."""
     nsteps = int(max(1, min(CALIBRATION_UPDATES // max(model.n_elems, 1), 256 * rec_every)))
-    compile_s, seconds = time_steps(model, control, state, dt, threads, rec_every, nsteps)
-    return model.n_elems * nsteps / max(seconds, 1e-9), compile_s
+    compile_s, seconds, ran = time_steps(model, control, state, dt, threads, rec_every,
+                                         nsteps, features)
+    return model.n_elems * max(ran, 1) / max(seconds, 1e-9), compile_s
 
 
 def estimate(case, model, dt, step0=0, rate=math.nan, checkpoint=False) -> Estimate:
@@ -134,8 +138,9 @@ def estimate(case, model, dt, step0=0, rate=math.nan, checkpoint=False) -> Estim
     mesh = 8.0 * (10 * n + 3 * m) + 2048 * (per_row + 8)  # and the datasets' headers
     ckpt = 2 * 8.0 * 10 * n if checkpoint else 0.0
     output = history + frames * frame + (frame_chunks if frames else 0.0) + mesh + ckpt
+    h5 = output - ckpt - frames * (VTU_FACTOR * (80 * n + 42 * m) + 100)
     return Estimate(n, m, steps, updates, rate, updates / rate if rate > 0 else math.nan,
-                    memory_bytes(m), output, rows, frames)
+                    memory_bytes(m), output, rows, frames, h5)
 
 
 def check_budget(case, est: Estimate, folder, force=False):
@@ -150,6 +155,14 @@ def check_budget(case, est: Estimate, folder, force=False):
                          f"{fmt_duration(WALL_BUDGET_S)} (a coarser mesh, a larger time.dt or "
                          f"a shorter time.end; {FORCE_HINT})")
     _check_memory(case, est.memory, est.elements, force)
+    limit = size_limit()
+    if est.results_h5 + MARGIN + RESERVE > limit:
+        raise InputError(folder, "", f"the run writes about {fmt_bytes(est.results_h5)} into "
+                         f"results.h5 ({est.rows} history rows, {est.frames} frames), more "
+                         f"than the file-size limit (ulimit -f) of {fmt_bytes(limit)} less "
+                         f"{fmt_bytes(MARGIN + RESERVE)} for its last flush (a larger "
+                         f"output.history_dt or output.frame_dt; {FORCE_HINT}, and stops at "
+                         "the limit)")
     free = free_bytes(folder)
     if est.output > free:
         raise InputError(folder, "", f"the run writes about {fmt_bytes(est.output)} "

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-import tomllib
+import copy
 from pathlib import Path
 
 from spinweb_fe import case as case_mod
+from spinweb_fe.case.text import parse_toml
 from spinweb_fe.errors import InputError
-from spinweb_fe.io.checkpoint import CHECKPOINT_NAME, check_results_for_restart, read_checkpoint
-from spinweb_fe.io.folder import ASIDE_NAME, Aside, FolderLock, busy, holder
+from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, check_results_for_restart,
+                                      check_run_entries, read_checkpoint)
+from spinweb_fe.io.folder import Aside, FolderLock, aside_state, busy, check_entries, holder
 from spinweb_fe.run.driver import run_case
 
 #: keys that a restart may change (everything else would break bit-identical continuation)
@@ -56,13 +58,16 @@ def restart_case(out_dir, sets=(), progress=True, checkpoint_dt=None, threads=No
     out_dir = Path(out_dir)
     if (info := holder(out_dir)) is not None:
         raise busy(out_dir, info)
-    if (out_dir / ASIDE_NAME).is_dir():  # a run killed before its first rows: undo it
+    check_entries(out_dir)  # a lock and a .previous that spinweb can use, or one line
+    if aside_state(out_dir)[0] != "missing":  # a run killed before its first rows: undo it
         with FolderLock(out_dir):
             Aside.recover(out_dir)
+    check_run_entries(out_dir)
     ck = read_checkpoint(out_dir / CHECKPOINT_NAME)
-    raw = case_mod.apply_overrides(tomllib.loads(ck.case_toml), sets)
+    stored = parse_toml(ck.case_toml, out_dir / CHECKPOINT_NAME)
+    raw = case_mod.apply_overrides(copy.deepcopy(stored), sets)
     case = case_mod.validate(raw, ck.case_source)
-    before = _flat(case_mod.validate(tomllib.loads(ck.case_toml), ck.case_source).to_dict())
+    before = _flat(case_mod.validate(stored, ck.case_source).to_dict())
     after = _flat(case.to_dict())
     changed = sorted(k for k in set(before) | set(after)
                      if before.get(k) != after.get(k) and k not in RESTART_KEYS)

@@ -9,7 +9,7 @@ import sys
 import threading
 import time
 
-from spinweb_fe.errors import RunInterrupted
+from spinweb_fe.errors import RunError, RunInterrupted
 from spinweb_fe.record.recorders import Recorder
 
 SETUP = "during set-up, before anything was written"
@@ -88,6 +88,7 @@ class StopSignals:
         self.signame = None
         self.at_once = False
         self._previous = {}
+        self._previous_hook = sys.unraisablehook
 
     def _handler(self, signum, frame):
         if self.signame is None:
@@ -103,14 +104,28 @@ class StopSignals:
     @contextlib.contextmanager
     def immediate(self):
         """Within this block a signal stops at once (RunInterrupted): for set-up work that
-        writes nothing, so that stopping it halfway leaves nothing half-written."""
+        writes nothing, so that stopping it halfway leaves nothing half-written. What the
+        stop turns into where it lands (numba's compiler, inside LLVM's callbacks, reports
+        it as an error of its own) is reported as the stop it is."""
         self.at_once = True
         try:
             if self.signame:
                 raise RunInterrupted(self.signame, None, SETUP)
             yield
+        except Exception as exc:
+            if self.signame and not isinstance(exc, RunInterrupted):
+                raise RunInterrupted(self.signame, None, SETUP) from None
+            raise
         finally:
             self.at_once = False
+
+    def _unraisable(self, unraisable):
+        """A stop raised inside a C callback (LLVM's object cache, during a compile) cannot
+        unwind it: Python would print it as 'Exception ignored'. It is the stop already
+        recorded; anything else goes to the previous hook."""
+        if isinstance(unraisable.exc_value, (RunInterrupted, KeyboardInterrupt)):
+            return
+        self._previous_hook(unraisable)
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -118,10 +133,16 @@ class StopSignals:
                 sig = getattr(signal, name)
                 self._previous[sig] = signal.getsignal(sig)
                 signal.signal(sig, self._handler)
+            self._previous_hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, exc, tb):
         for sig, handler in self._previous.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        if self._previous:
+            sys.unraisablehook = self._previous_hook
         self._previous = {}
+        if self.signame and isinstance(exc, Exception) and not isinstance(exc, RunError):
+            # numba's error where the stop landed (a second SIGINT while it compiles)
+            raise RunInterrupted(self.signame, None) from None
         return False

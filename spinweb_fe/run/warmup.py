@@ -29,8 +29,10 @@ import threading
 import numpy as np
 
 from spinweb_fe.fe import step
-from spinweb_fe.fe.axis import AxisKick, NodeMotion, axis_devices, axis_nodes
-from spinweb_fe.fe.coil import open_bundles, release_fronts
+from spinweb_fe.fe.coil.devices import axis_devices
+from spinweb_fe.fe.hub.axis import AxisKick, NodeMotion, axis_nodes
+from spinweb_fe.fe.coil.bundles import open_bundles
+from spinweb_fe.fe.coil.levels import release_fronts
 
 ENV = "SPINWEB_COMPILE_HELPER"
 PR_SET_PDEATHSIG = 1
@@ -115,11 +117,12 @@ def _stop(signum, frame):
 
 
 @contextlib.contextmanager
-def compile_helper(chunks, state, dt, audit=None, contact=None):
-    """Around the first call of the step loop ``chunks`` (run.loop._Chunks) on ``state``:
-    start the helper if the loop is not compiled yet for these types and :func:`wanted`,
-    and stop it when the block ends. Yields the helper's pid (None: no helper)."""
-    args = chunks.loop_args(state, dt, 0, audit, contact)
+def compile_helper(chunks, state, dt, hooks=None):
+    """Around the first call of the step loop ``chunks`` (run.loop._Chunks) on ``state`` with
+    its features' ``hooks``: start the helper if the loop is not compiled yet for these
+    types and :func:`wanted`, and stop it when the block ends. Yields the helper's pid
+    (None: no helper)."""
+    args = chunks.loop_args(state, dt, 0, hooks)
     pid = None
     if wanted() and not cached(step.advance, args):
         jobs = phase_jobs(args[0], (args[1], args[2]), state, chunks.work, chunks.rec,

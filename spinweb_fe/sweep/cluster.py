@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from spinweb_fe.errors import RunError
-from spinweb_fe.sweep.run import METRICS, Sweep, run_one
+from spinweb_fe.sweep.run import METRICS, Sweep, one_line, run_one
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +37,7 @@ def warm(client, task: dict, out_dir) -> dict:
 def _failed(exc) -> dict:
     row = {name: math.nan for name, _, _ in METRICS}
     row["failed"] = "run failed"
-    row["status"] = f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
+    row["status"] = one_line(exc)
     return row
 
 

@@ -26,6 +26,7 @@ from spinweb_fe.errors import InputError
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.record import criteria as criteria_reg
 from spinweb_fe.record.metrics import BOUNDS, OBJECTIVES
+from spinweb_fe.case.text import base_path, show
 from spinweb_fe.sweep.run import _read_toml, apply, flatten
 
 TOP_KEYS = ("title", "base", "law", "minimise", "require", "candidates", "refine",
@@ -98,7 +99,7 @@ class Design:
 
 def _num(src, key, v) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise InputError(src, key, f"must be a finite number, got {v!r}")
+        raise InputError(src, key, f"must be a finite number, got {show(v)}")
     return float(v)
 
 
@@ -142,10 +143,10 @@ def _options(src, doc):
 
 def _choice(src, key, v, valid, what):
     """``v`` if it is one of ``valid``, else InputError naming the nearest."""
-    if v in valid:
+    if isinstance(v, str) and v in valid:
         return v
     near = difflib.get_close_matches(str(v), list(valid), n=1, cutoff=0.5)
-    raise InputError(src, key, f"unknown {what} {v!r}" + (
+    raise InputError(src, key, f"unknown {what} {show(v)}" + (
         f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(valid)})"))
 
 
@@ -200,9 +201,7 @@ def load_design(path, chart: bool = False) -> Design:
     doc = _read_toml(src, "design file")
     for key in doc:
         _choice(src, key, key, TOP_KEYS, "key")
-    if not isinstance(doc.get("base"), str):
-        raise InputError(src, "base", "missing: the base case file, relative to the design file")
-    base = (src.parent / doc["base"]).resolve()
+    base = base_path(src, doc, "design")
     base_raw = _read_toml(base, "base case")
     for name in ("search", "set", "tie", "bounds", "fe", "chart"):
         if not isinstance(doc.get(name, {}), dict):

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spinweb_fe.case.text import show
 from spinweb_fe.errors import InputError
 
 #: distribution name -> (required parameters, optional parameters)
@@ -31,6 +32,7 @@ DISTRIBUTIONS = {"normal": (("mean", "std"), ("low", "high")),
 #: the confidence of the pass rate's interval
 CONFIDENCE = 0.95
 MAX_MEMBERS = 100_000
+MAX_SEED = 2 ** 63  # summary.h5 stores the seed as a 64-bit integer
 
 
 @dataclass(frozen=True)
@@ -61,7 +63,12 @@ class Draw:
 
 
 def _number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an integer beyond the floats
+        return False
 
 
 def flatten_random(table: dict, prefix: str = "") -> dict:
@@ -101,8 +108,11 @@ def parse(src, doc: dict) -> tuple:
         raise InputError(src, "members", f"must be an integer from 1 to {MAX_MEMBERS}, "
                          f"got {members!r}")
     seed = doc.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(src, "seed", f"must be an integer >= 0, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < MAX_SEED:
+        shown = f"an integer of {len(str(seed))} digits" if isinstance(seed, int) and \
+            abs(seed) >= 10 ** 24 else repr(seed)
+        raise InputError(src, "seed", f"must be an integer from 0 to 2^63 - 1 (it is "
+                         f"stored as a 64-bit integer), got {shown}")
     if not table:
         raise InputError(src, "random", "missing: the keys the members draw (e.g. "
                          "\"tip_mass.mass\" = {dist = \"normal\", mean = 10.0, std = 0.5})")
@@ -132,7 +142,8 @@ def parse(src, doc: dict) -> tuple:
         else:
             for k, v in params.items():
                 if not _number(v):
-                    raise InputError(src, f"{where}.{k}", f"must be a finite number, got {v!r}")
+                    raise InputError(src, f"{where}.{k}", f"must be a finite number, got "
+                                     f"{show(v)}")
             if dist == "normal" and params["std"] < 0:
                 raise InputError(src, f"{where}.std", f"must be >= 0, got {params['std']}")
             low, high = params.get("low", -math.inf), params.get("high", math.inf)

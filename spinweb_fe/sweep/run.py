@@ -25,6 +25,7 @@ metrics (:func:`history_metrics`); a failing run is recorded with its error in
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import difflib
 import itertools
@@ -40,11 +41,14 @@ from pathlib import Path
 
 
 from spinweb_fe.case.load import validate
+from spinweb_fe.case.text import base_path, read_toml
 from spinweb_fe.record import metrics as metric_reg
 from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.run.estimate import case_elements
 from spinweb_fe.sweep.draws import member_values
 from spinweb_fe.sweep.draws import parse as parse_draws
+from spinweb_fe.sweep.limits import check_runs, count_runs
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +81,7 @@ class Run:
     raw: dict
     label: str = ""  # the name of its [[runs]] entry, if given
     member: int = -1  # its Monte-Carlo member (-1: the sweep has none)
+    elements: float = 0.0  # about its cable elements (FE; run.estimate.case_elements)
 
 
 @dataclass(frozen=True)
@@ -150,12 +155,7 @@ def _slug(values: dict) -> str:
 
 
 def _read_toml(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise InputError(path, "", f"no such {what}")
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"TOML syntax error: {exc}") from None
+    return read_toml(path, what)
 
 
 def _scalar(src, key, v):
@@ -164,7 +164,7 @@ def _scalar(src, key, v):
     return v
 
 
-def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
+def load_sweep(path, mode=None, sets=(), only=(), force=False) -> Sweep:
     """Read a sweep file, build and validate every run.
 
     Parameters
@@ -176,6 +176,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
         ``key=value`` overrides (TOML values) added to ``[set]``.
     only : iterable of str
         Keep only these runs (their names or indices; each run keeps its own draws).
+    force : bool
+        Accept more runs than the machine can keep track of (sweep.limits.check_runs).
 
     Raises
     ------
@@ -193,9 +195,7 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
             near = difflib.get_close_matches(key, TOP_KEYS, n=1, cutoff=0.5)
             hint = f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(TOP_KEYS)})"
             raise InputError(src, key, "unknown key" + hint)
-    if not isinstance(doc.get("base"), str):
-        raise InputError(src, "base", "missing: the base case file, relative to the sweep file")
-    base = (src.parent / doc["base"]).resolve()
+    base = base_path(src, doc, "sweep")
     mode = mode or doc.get("mode", "fe")
     if mode not in MODES:
         raise InputError(src, "mode", f"unknown mode '{mode}' (valid: {', '.join(MODES)})")
@@ -236,6 +236,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
             raise InputError(src, f"random.{d.key}", "also set in [set], [grid] or [[runs]]: "
                              "give it in one place")
     keys = tuple(list(grid) + run_keys + [d.key for d in draws])
+    check_runs(count_runs(len(entries), [len(v) for v in grid.values()], members), src,
+               force)  # before anything is built
     base_raw = _read_toml(base, "base case")
     points = [dict(zip(grid, combo)) for combo in itertools.product(*grid.values())]
     combos = [(i, e, g, m) for i, e in enumerate(entries) for g in points
@@ -254,7 +256,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
                                   if member >= 0 else "")
         raw = apply(base_raw, overrides, src, where)
         try:
-            resolved = flatten(validate(raw, str(base)).to_dict())
+            case = validate(raw, str(base))
+            resolved = flatten(case.to_dict())
         except InputError as exc:
             raise InputError(src, f"{where}: {exc.key}" if exc.key else where,
                              exc.reason) from None
@@ -269,7 +272,8 @@ def load_sweep(path, mode=None, sets=(), only=()) -> Sweep:
         if wanted and name not in wanted and str(index) not in wanted:
             continue
         runs.append(Run(index, name, values, overrides, raw,
-                        "" if label is None else str(label), member))
+                        "" if label is None else str(label), member,
+                        case_elements(case) if mode == "fe" else 0.0))
     if wanted and not runs:
         raise InputError("--only", "", f"no run of {src.name} is named {', '.join(sorted(wanted))} "
                          "(see --dry-run for the names)")
@@ -321,8 +325,49 @@ def run_one(task: dict) -> dict:
     the run's log go to ``out_dir/run.log``.
     """
     t0 = time.perf_counter()
-    os.environ["SPINWEB_COMPILE_HELPER"] = "0"  # the workers share the cores already
     out = Path(task["out_dir"])
+    with member_log(out) as spin_log:
+        try:
+            case = validate(task["raw"], task["source"])
+            if task["mode"] == "fe":
+                from spinweb_fe.run.driver import run_case
+
+                run_case(case, out, progress=False)
+                metrics, crits = fe_metrics(out / "results.h5")
+            else:
+                from spinweb_fe.analytic import solve as analytic
+
+                res = analytic.solve_case(case, model=task["model"])
+                analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
+                p = res.params  # a model that stopped (its validity) fails 'completed'
+                crits = analytic.judge(case, res)
+                metrics = history_metrics(res.history, crits, p.r0 + p.H, p.r0,
+                                          verdict.limits_of(case.verdict)["deployed_fraction"])
+            recoil = next(c for c in crits if c.name == "recoil")
+            metrics.update(recoiled=float(recoil.passed is False),
+                           passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
+                           failed=",".join(verdict.failed_names(crits)))
+            status = "ok"
+        except Exception as exc:  # recorded, not fatal: the sweep goes on
+            spin_log.error("run failed:\n%s", traceback.format_exc())
+            metrics = {name: math.nan for name, _, _ in METRICS}
+            metrics["failed"] = "run failed"
+            status = one_line(exc)
+    return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}
+
+
+def one_line(exc) -> str:
+    """An error as a run's status: its type and first line."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0] or type(exc).__name__
+
+
+@contextlib.contextmanager
+def member_log(out: Path):
+    """The log of one run on a worker: ``out/run.log`` gets the package's log lines (INFO
+    and up) while the block runs, and nothing goes to the worker's own log; the kernels'
+    compile helper is off (the workers share the cores already). Yields the package's
+    logger."""
+    os.environ["SPINWEB_COMPILE_HELPER"] = "0"
     out.mkdir(parents=True, exist_ok=True)
     spin_log = logging.getLogger("spinweb_fe")  # the package: every module logs under it
     handler = logging.FileHandler(out / "run.log", mode="w")
@@ -331,34 +376,8 @@ def run_one(task: dict) -> dict:
     spin_log.addHandler(handler)
     spin_log.propagate, spin_log.level = False, logging.INFO
     try:
-        case = validate(task["raw"], task["source"])
-        if task["mode"] == "fe":
-            from spinweb_fe.run.driver import run_case
-
-            run_case(case, out, progress=False)
-            metrics, crits = fe_metrics(out / "results.h5")
-        else:
-            from spinweb_fe.analytic import solve as analytic
-
-            res = analytic.solve_case(case, model=task["model"])
-            analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
-            p = res.params  # a model that stopped (its validity) fails 'completed'
-
-            crits = analytic.judge(case, res)
-            metrics = history_metrics(res.history, crits, p.r0 + p.H, p.r0,
-                                      verdict.limits_of(case.verdict)["deployed_fraction"])
-        recoil = next(c for c in crits if c.name == "recoil")
-        metrics.update(recoiled=float(recoil.passed is False),
-                       passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
-                       failed=",".join(verdict.failed_names(crits)))
-        status = "ok"
-    except Exception as exc:  # recorded, not fatal: the sweep goes on
-        spin_log.error("run failed:\n%s", traceback.format_exc())
-        metrics = {name: math.nan for name, _, _ in METRICS}
-        metrics["failed"] = "run failed"
-        status = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        yield spin_log
     finally:
         spin_log.removeHandler(handler)
         handler.close()
         spin_log.propagate, spin_log.level = saved
-    return {**metrics, "wall_time_s": time.perf_counter() - t0, "status": status}

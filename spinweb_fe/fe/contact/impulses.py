@@ -1,15 +1,17 @@
 """The contact's impulses at a step's end besides the fail-safe's crossings
-(fe.cable_contact): Coulomb friction between touching cables, and the bookkeeping of every
+(fe.contact.penalty): Coulomb friction between touching cables, and the bookkeeping of every
 impulse: its work paired as the leapfrog pairs a force, and the angular impulse about the
 axis that a fixed hub takes as their reaction, or the impulse and moment a free hub takes
 (docs/solver.md, cable-cable contact)."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.rigid import (cross, dot, hub_centre, inv_inertia, mul, mul_t, normalise,
+from spinweb_fe.fe.hub.rigid import (cross, dot, hub_centre, inv_inertia, mul, mul_t, normalise,
                                 rotation, spatial_inertia, turn)
 
 
@@ -128,7 +130,7 @@ def axis_reaction(pos, before, after, inv_mass, dt, inertia, follow, place=True)
     """A fixed axis (effective inertia ``inertia`` [kg m^2]) takes the angular impulse
     about z of the impulses that changed the free nodes' v_{n+1/2} from ``before`` to
     ``after`` (``pos``: their x_{n+1}, :func:`node_impulse`), together with the free nodes
-    that move with it this step (``follow``, fe.zones: stuck to the hub, they turn with it,
+    that move with it this step (``follow``, fe.contact.zones: stuck to the hub, they turn with it,
     v += dw z x x_{n+1}, x_{n+1} by dt times that): the rate's change dw [rad/s] keeps the
     axial angular momentum of hub and nodes. ``place`` False: the hub will not turn by dt
     dw in this step (fe.step.settle's last pass), so the stuck nodes take only the velocity
@@ -196,20 +198,20 @@ def _stuck(rs, pos, after, inv_mass, dt, follow, J, H, base, Iw, place):
 
 
 @njit(cache=True)
-def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None, place=True):
-    """A free hub (fe.rigid.RigidState ``rs``, after its drift) takes the reaction of the
+def body_reaction(rs, pos, before, after, inv_mass, v0, w0, dt, follow=None, place=True):
+    """A free hub (fe.hub.rigid.RigidState ``rs``, after its drift) takes the reaction of the
     impulses that changed the free nodes' v_{n+1/2} from ``before`` to ``after`` (``pos``:
     their x_{n+1}, see :func:`node_impulse`): V_{n+1/2} by -J / M and X_{n+1} by dt times
     that (as a node's impulse moves its x_{n+1}), Pi_{n+1/2} such that the step's angular
     momentum M X x V + Pi + sum m x_n x v_{n+1/2} is unchanged, and its attitude turned by
     dt times the change of its angular velocity (as a fixed axis turns by dt dw). The free
-    nodes marked in ``follow`` (stuck to the hub this step, fe.zones) take the body's
+    nodes marked in ``follow`` (stuck to the hub this step, fe.contact.zones) take the body's
     change with it, v += dV + dw x (x_{n+1} - X) and x_{n+1} by dt times that, and the
     change keeps the momenta of body and nodes together (:func:`_stuck`). ``place`` False
     (fe.step.settle's last pass): the reaction changes the velocities only, X_{n+1}, the
     attitude and the stuck nodes' x_{n+1} stay (so M X x V + Pi + sum m x_{n+1} x v is kept,
     the moment arms those of x_{n+1}), and nothing the hub carries moves after the pass
-    that tested it. ``start``: V_{n-1/2} [m/s] and its angular velocity [rad/s] at the
+    that tested it. ``v0``, ``w0``: V_{n-1/2} [m/s] and its angular velocity [rad/s] at the
     step's start. Returns the work of the reaction on the body [J], paired as the leapfrog
     pairs a force's (with the half-step values before and after)."""
     J, H = node_impulse(pos, before, after, inv_mass, dt)
@@ -247,18 +249,45 @@ def body_reaction(rs, pos, before, after, inv_mass, start, dt, follow=None, plac
     if place and size > 0.0:
         turn(rs.quaternion, mul_t(R, dw) / size, dt * size)
         normalise(rs.quaternion)
-    return (dot(dP, start[0:3] + V) + dot(dPi, start[3:6] + w_new)) * 0.5
+    return (dot(dP, v0 + V) + dot(dPi, w0 + w_new)) * 0.5
+
+
+class HubStart(NamedTuple):
+    """The hub at a step's start, and the reaction the contact's fail-safe gave it at the
+    step's end (fe.contact.penalty.contact_resolve; each field an array the kernels write).
+
+    rate, angle (1,) [rad/s], [rad]: a fixed axis's omega_{n-1/2} and theta_n; dw (1,)
+    [rad/s]: the change of a fixed axis's rate the reaction made; took (1,) bool: the hub
+    took a reaction (a fixed axis: dw not 0); velocity (3,) [m/s], omega (3,) [rad/s],
+    centre (3,) [m], quaternion (4,): a free hub's V_{n-1/2}, angular velocity, hub centre
+    and attitude (w, x, y, z) at the step's start (:func:`body_snapshot`).
+    """
+
+    rate: np.ndarray
+    angle: np.ndarray
+    dw: np.ndarray
+    took: np.ndarray
+    velocity: np.ndarray
+    omega: np.ndarray
+    centre: np.ndarray
+    quaternion: np.ndarray
+
+
+def hub_start() -> HubStart:
+    """A :class:`HubStart` of zeros."""
+    return HubStart(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1, np.bool_), np.zeros(3),
+                    np.zeros(3), np.zeros(3), np.zeros(4))
 
 
 @njit(cache=True)
-def body_snapshot(rs, out):
-    """A free hub's V [m/s] and angular velocity I_s^{-1} Pi [rad/s] (the ``start`` of
-    :func:`body_reaction`), its hub centre [m] and attitude quaternion now, into ``out``
-    (14,) (None, a fixed axis: nothing)."""
+def body_snapshot(rs, start):
+    """A free hub's V [m/s], angular velocity I_s^{-1} Pi [rad/s] (those of
+    :func:`body_reaction`), hub centre [m] and attitude quaternion now, into ``start`` (a
+    :class:`HubStart`; None, a fixed axis: nothing)."""
     if rs is None:
         return
     R = rotation(rs.quaternion)
-    out[0:3] = rs.velocity
-    out[3:6] = inv_inertia(rs, R, rs.momentum)
-    out[6:9] = hub_centre(rs, R)
-    out[9:13] = rs.quaternion
+    start.velocity[:] = rs.velocity
+    start.omega[:] = inv_inertia(rs, R, rs.momentum)
+    start.centre[:] = hub_centre(rs, R)
+    start.quaternion[:] = rs.quaternion

@@ -1,4 +1,4 @@
-"""The line at a reel's or brake's departure point D (fe.payout): its energy and the
+"""The line at a reel's or brake's departure point D (fe.coil.payout): its energy and the
 leapfrog's pairing of kinetic and strain energy, from which each device's work is measured
 (the energy its update changes, with the midpoint pairing the device's work is second
 order in the step; docs/solver.md)."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.payout import _frac, _hub_velocity3
+from spinweb_fe.fe.coil.payout import _frac, _hub_velocity3
 
 
 @njit(inline="always")

@@ -8,7 +8,7 @@ frame -> inertial) and the angular momentum about the centre of mass Pi (inertia
 half step; its mass, centre of mass in the hub frame and inertia tensor change only when held
 nodes are released (:func:`detach`). A node of the body sits at x = X + R (r - c).
 
-One step (fe.step with the phases of fe.body) is the central-difference step of the cables with the body in the
+One step (fe.step with the phases of fe.hub.body) is the central-difference step of the cables with the body in the
 same leapfrog: a kick V += dt F / M, Pi += dt T with the loads at x_n, then the drift X += dt
 V and the free rotation of the body with Pi fixed over dt. The free rotation is the
 symplectic splitting of Dullweber, Leimkuhler and McLachlan (1997): the kinetic energy
@@ -238,7 +238,7 @@ def _add_point(m, r, first, inertia):
 def assemble(body, nodes, hub, coil, cs, rs):
     """Mass, centre of mass, inertia tensor about it and principal axes of the body: the
     hub, the tied nodes, the held coil levels (behind each arm's front) and the mass a
-    payout device holds at its departure point (fe.payout), into ``rs``."""
+    payout device holds at its departure point (fe.coil.payout), into ``rs``."""
     mass = body.mass
     first = np.zeros(3)
     inertia = body.inertia.copy()

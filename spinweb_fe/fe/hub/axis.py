@@ -6,7 +6,7 @@ the held coil); a torque law integrates
     J_eff omega' = M + tau,    tau = z-moment of the forces on the nodes that move with it,
 
 and a prescribed-rate law imposes omega at the half step and reports the torque it takes.
-Its node pass is the fast one: v += dt f / m, the cable-hub contact (fe.contact) of the nodes
+Its node pass is the fast one: v += dt f / m, the cable-hub contact (fe.hub.contact) of the nodes
 heading inside the rim, x += dt v, in one straight loop over node blocks that LLVM
 vectorises, on several threads when the contact is frictionless (friction turns the hub node
 by node). Every function here takes arrays and scalars, not whole tuples, where it runs
@@ -20,14 +20,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spinweb_fe.fe.coil import (gather_bundles, held_moment, place_held, place_levels,
-                                scatter_bundles)
-from spinweb_fe.fe.contact import contact_node
+from spinweb_fe.fe.coil.bundles import gather_bundles, scatter_bundles
+from spinweb_fe.fe.coil.levels import held_moment
 from spinweb_fe.fe.control import eval_control
-from spinweb_fe.fe.line import line_energy, line_pairing
-from spinweb_fe.fe.brake import device_target
-from spinweb_fe.fe.payout import locate_devices, move_line, rest_ref
-from spinweb_fe.fe.rigid import body_loads
+from spinweb_fe.fe.hub.contact import contact_node
+from spinweb_fe.fe.hub.rigid import body_loads
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
 
@@ -386,74 +383,6 @@ def axis_vector_row(hub, coil, cs, nodes, pos, theta, w, j_eff, row, vs):
     row[vs.hub_angular_velocity + 2] = w
 
 
-@njit(cache=True)
-def axis_pose(theta, omega):
-    """The pose rows of fe.payout.locate_devices for a hub on the fixed axis at theta
-    turning at omega: R = Rz(theta), the centres at the origin, no velocity there."""
-    pose = np.zeros((7, 3))
-    c, s = np.cos(theta), np.sin(theta)
-    pose[0, 0], pose[0, 1], pose[1, 0], pose[1, 1], pose[2, 2] = c, -s, s, c, 1.0
-    pose[6, 2] = omega
-    return pose
-
-
-@njit(cache=True)
-def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
-    """The reels or brakes of a scene on a fixed axis at the end of a step (fe.payout): each
-    arm's line moves to the device's target, the hub sheds the mass that passes and takes
-    the reaction's moment about the axis (its rate and inertia in ``hs`` change), the held
-    and tied nodes follow; each arm's device work is the change of the energy its update
-    makes (``coil`` None: nothing, at compile time)."""
-    if coil is None:
-        return
-    w, j = hs.rate[0], hs.inertia[0]
-    pose = axis_pose(hs.angle[0], w)
-    locate_devices(coil, cs, pose)
-    out = np.zeros(7)
-    steps = np.empty((coil.test_elem.shape[0] + 1, 3))
-    moved = False
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        lev = coil.arm_ptr[k] + cs.front[k]
-        if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
-            continue
-        if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
-            if s_new >= cs.s_dev[k]:
-                cs.dev_speed[k] = 0.0
-                continue
-        else:
-            s_new = cs.s_dev[k]
-        # the held nodes the energies count turn with the hub's rate now (every held node
-        # and the tied ones follow once, after the last arm)
-        place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
-                     mv.pos, mv.vel, hs.angle[0], w, k, lev, lev)
-        e0 = line_energy(coil, cs, k, elems, mv, lev, lev) + 0.5 * j * w * w
-        steps[0, 0] = -1.0
-        e0 += 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps)
-        r = rest_ref(coil, k, lev)
-        rest0 = cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
-        out[:] = 0.0
-        move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
-        lev1 = coil.arm_ptr[k] + cs.front[k]
-        if lev1 < coil.arm_ptr[k + 1]:
-            r = rest_ref(coil, k, lev1)
-            j += cs.dev_rest[k] * (r[0] ** 2 + r[1] ** 2)
-        j -= rest0 + out[6]
-        w += out[5] / j  # the moment of the device's reaction about the axis
-        pose[6, 2] = w
-        moved = True
-        place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
-                     mv.pos, mv.vel, hs.angle[0], w, k, lev, lev1)
-        e1 = (line_energy(coil, cs, k, elems, mv, lev, lev1) + 0.5 * j * w * w
-              + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
-        cs.dev_work[k] += e1 - e0
-    if moved:
-        place_rigid(mv.pos, mv.vel, hub.tied_idx, hub.tied_ref, hs.angle[0], w)
-        place_held(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
-                   mv.pos, mv.vel, hs.angle[0], w)
-    hs.rate[0], hs.inertia[0] = w, j
-
-
 def axis_start(model, law, state, force, dt):
     """v_{-1/2} = v_0 - dt/2 a_0 of the free nodes and omega_{-1/2} of the hub (a prescribed
     rate takes the law's rate at -dt/2); ``force`` (n, 3): the internal forces at x_0.
@@ -464,7 +393,7 @@ def axis_start(model, law, state, force, dt):
     hub, coil, cs = model.hub, model.coil, state.coil
     pos = state.node_pos
     vel = state.node_vel
-    if model.env.n > 0.0:  # the gravity gradient's forces (fe.axis.axis_field)
+    if model.env.n > 0.0:  # the gravity gradient's forces (fe.hub.axis.axis_field)
         node_tidal(model.env, 0.0, pos, model.nodes.mass, force, np.zeros_like(force))
     if model.bundles is not None:
         gather_bundles(model.bundles, cs, force)

@@ -1,10 +1,10 @@
-"""The brake's kernels (``[stowage] payout = "brake"``, fe.payout): where the line at each
+"""The brake's kernels (``[stowage] payout = "brake"``, fe.coil.payout): where the line at each
 arm's departure point D goes in a step. A return mapping: the line sticks while its tension
 at D is at or below the force (or its pull lies along the hub), else it slips to where the
 tension equals the force, within limits that keep the slip physical (the line's stretch and
 travel, its momentum balance across D) and the brake dissipative (its work never above
 -SLIP_DUE times the friction's N x_rel); docs/solver.md. :func:`device_target` is the reel's
-or the brake's target, which the step's device phase (fe.axis, fe.body) calls.
+or the brake's target, which the step's device phase (fe.hub.axis, fe.hub.body) calls.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.coil import law_value
-from spinweb_fe.fe.payout import (REEL, _frac, _hub_velocity3, _world, device_point,
+from spinweb_fe.fe.coil.levels import law_value
+from spinweb_fe.fe.coil.payout import (REEL, _frac, _hub_velocity3, _world, device_point,
                                   rest_ref)
 
 #: the brake's return mapping: at most this many tension evaluations per arm and step
@@ -40,8 +40,8 @@ def brake_target(coil, cs, k, lev, elems, mv, pose, force, dt):
     stays: the coil holds it, as the free payout's does."""
     s_old, s_f = cs.s_dev[k], coil.level_coord[lev]
     x_d = cs.dev_x[k]
-    c = pose[3]
-    ax = np.array([pose[0, 2], pose[1, 2], pose[2, 2]])
+    c = pose.centre
+    ax = np.array([pose.rot[0, 2], pose.rot[1, 2], pose.rot[2, 2]])
     r = x_d - c
     r = r - (r[0] * ax[0] + r[1] * ax[1] + r[2] * ax[2]) * ax  # D's radial
     pos, vel = mv.pos, mv.vel

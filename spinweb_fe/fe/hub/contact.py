@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.rigid import body_energy, cross, inv_inertia
+from spinweb_fe.fe.hub.rigid import body_energy, cross, inv_inertia
 
 
 @njit(inline="always")

@@ -1,12 +1,13 @@
 """The Coil of a coiled mesh: its levels (per arm, the coil nodes of one arm coordinate,
-outer first), their free elements and the laws that release them (fe.coil's kernels read
+outer first), their free elements and the laws that release them (fe.coil.levels's kernels read
 it)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from spinweb_fe.fe.coil import Coil, no_coil
+from spinweb_fe.fe.coil.levels import BUNDLES, Coil, no_coil
+from spinweb_fe.fe.coil.payout import BY_CODE as PAYOUTS_BY_CODE
 
 
 def _levels(mesh, coil_nodes):
@@ -40,6 +41,9 @@ def _free_elements(elem_nodes, level_of, level_arm, level_coord, level_first):
     return ptr.astype(np.int64), el, fr, to
 
 
+BUNDLES_BY_CODE = {c.code: c for c in BUNDLES.values()}
+
+
 def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundle=(0, 0.0),
                hold=None, elem_mass=None) -> Coil:
     """The Coil of a coiled mesh (``mesh.node_sets['coil']``), its levels and free elements.
@@ -52,7 +56,7 @@ def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundl
     coil_code : int
         See :data:`COILS`.
     payout : (code, None or ((P,) times [s], (P,) lengths [m]))
-        The payout device (fe.payout.PAYOUTS) and its law's paid-out length table.
+        The payout device (fe.coil.payout.PAYOUTS) and its law's paid-out length table.
     bundle : (code, value)
         See :data:`BUNDLES`.
     hold : None or (n_arms,) float64 [s]
@@ -100,8 +104,11 @@ def build_coil(mesh, elem_nodes, node_mass, coil_code=1, payout=(0, None), bundl
         test_ptr=test_ptr, test_elem=t_el, test_from=t_from, test_to=t_to,
         test_to_coord=coord[level_of[t_to]], arm_end=ends, arm_base=bases, base_rim=base_rim,
         coil_code=int(coil_code), payout_code=int(payout[0]),
+        device=PAYOUTS_BY_CODE[int(payout[0])].device,
+        length_law=PAYOUTS_BY_CODE[int(payout[0])].length_law,
         law_t=np.asarray(t, np.float64), law_v=np.asarray(L, np.float64),
         test_half=(np.zeros(len(t_el)) if elem_mass is None
                    else 0.5 * np.asarray(elem_mass, np.float64)[t_el]),
-        bundle_code=int(bundle[0]), bundle_value=float(bundle[1]),
+        bundle_code=int(bundle[0]), bundle_timed=BUNDLES_BY_CODE[int(bundle[0])].timed,
+        bundle_value=float(bundle[1]),
         arm_hold=np.zeros(mesh.n_arms) if hold is None else np.asarray(hold, np.float64))

@@ -5,7 +5,7 @@
 a scene without them compiles and runs as before):
 
     step start   x_n kept (the step's motion is tested from there); the contact's penalty
-                 forces at x_n, which the step adds to f_n (fe.cable_contact.add_penalty)
+                 forces at x_n, which the step adds to f_n (fe.contact.penalty.add_penalty)
     row          the audit's count, the contact's stored energy and dissipation so far
     step end     the contact's fail-safe (impulses at the exact crossing time, after the whole
                  step: the hub's placing of tied and held nodes included; when the hub
@@ -33,9 +33,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.cable_contact import contact_push, contact_row
-from spinweb_fe.fe.crossing import boxed_crossings, candidate_pairs, moved_since, swept_boxes
-from spinweb_fe.fe.impulses import body_snapshot
+from spinweb_fe.fe.contact.penalty import contact_push, contact_row
+from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
+from spinweb_fe.fe.contact.crossing import boxed_crossings
+from spinweb_fe.fe.contact.impulses import body_snapshot
 
 #: status of ``advance``: stopped after a step for Python to rebuild the audit's list
 SERVICE = 2
@@ -59,11 +60,11 @@ class AuditKernel(NamedTuple):
 
     elem_nodes (m, 2) int64; pairs (P, 2) int64: the candidate list; ignored (I,) int64:
     sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) int8:
-    the broad phase's (1, or fe.crossing.RIGID for an element both of whose ends move with
+    the broad phase's (1, or fe.contact.crossing.RIGID for an element both of whose ends move with
     the hub); ref (n, 3) [m]: the nodes at the build, in the hub's frame
     then; fronts (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the
     step; box (m, 6) [m]: the boxes the active elements swept over the last step
-    (fe.crossing.swept_boxes; at the build, their boxes then); skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
+    (fe.contact.crossing.swept_boxes; at the build, their boxes then); skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
     (L,): the log, n_log (1,) int64 of it filled; row_count (R,): the count at each history
     row of the call; moved (1,) [m]: the largest motion since the build.
     """
@@ -146,10 +147,10 @@ def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, th
         contact.pos0[:] = pos
     if contact is not None:
         if rate is not None:
-            contact.spin[0] = rate[0]
-            contact.spin[2] = theta
+            contact.hub0.rate[0] = rate[0]
+            contact.hub0.angle[0] = theta
         if body is not None:
-            body_snapshot(body, contact.spin[2:16])
+            body_snapshot(body, contact.hub0)
         contact_push(contact, pos, vel, inv_mass, dt)
 
 

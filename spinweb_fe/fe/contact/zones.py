@@ -1,5 +1,5 @@
 """Impact zones: the contact's last resort in a step whose crossings the fail-safe's pair
-impulses (fe.cable_contact.resolve_crossings) did not remove within their rounds.
+impulses (fe.contact.penalty.resolve_crossings) did not remove within their rounds.
 
 In a column of stacked layers an impulse that parts one pair drives one of its elements
 into the next layer, and the rounds run out with crossings left (the study of
@@ -12,7 +12,7 @@ M V, angular momentum L about X and inertia tensor I about X (w = I^+ L, the
 pseudo-inverse: a zone on a straight line has no moment about it and no angular momentum
 along it), y = x_{n+1} - dt v_{n+1/2} (x_n for a node that moved freely). So a zone keeps
 its linear and angular momentum (to round-off; the hub's reaction and the energy booking
-of fe.impulses see the velocities' change as any impulse's), and its nodes move by one
+of fe.contact.impulses see the velocities' change as any impulse's), and its nodes move by one
 affine map x_n -> x_n + tau dt (V + w x (x_n - X)), invertible for every tau in [0, 1]:
 two elements of one zone that did not touch at x_n cannot pass through each other during
 the step. Elements of a zone can still meet elements outside it; those pairs are tested
@@ -20,10 +20,10 @@ again, and zones grow (merge) until no pair crosses or the rounds run out. A zon
 node held on or tied to the hub (inverse mass 0) moves with the hub: its free nodes take
 the hub's motion over the step, x_{n+1} = A y + c (``hub``: A, c from the hub's pose at
 the two ends of the step, :func:`axis_map`, :func:`body_map`), the map that carried the
-hub's own nodes; the momentum they gain or lose is the hub's reaction (fe.impulses). Without
+hub's own nodes; the momentum they gain or lose is the hub's reaction (fe.contact.impulses). Without
 the map (a call outside a run) such a zone stays as it is, and its crossings are counted.
 Such a zone's free nodes stay stuck to the hub for the rest of the step (``follow``): the
-hub's reaction to the step's impulses moves them with it (fe.impulses.body_reaction,
+hub's reaction to the step's impulses moves them with it (fe.contact.impulses.body_reaction,
 axis_reaction: the inelastic impact of the nodes on the hub, momenta kept), so that a node
 carried along touching a hub element is not left behind on its far side when the hub places
 its nodes again.
@@ -34,8 +34,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.crossing import moved_crosses
-from spinweb_fe.fe.rigid import hub_centre, jacobi3, rotation
+from spinweb_fe.fe.contact.crossing import moved_crosses
+from spinweb_fe.fe.hub.rigid import hub_centre, jacobi3, rotation
 
 #: passes of zone building at most per step
 ZONE_ROUNDS = 20
@@ -173,22 +173,22 @@ def axis_map(dtheta):
 
 
 @njit(cache=True)
-def body_map(rs, start):
-    """(4, 3): a free hub's motion since ``start`` (its hub centre C0 [m] and quaternion q0,
-    fe.impulses.body_snapshot's last seven) to its pose now, x -> A x + c with A = R R0^T,
-    c = C - A C0 (None without a body)."""
+def body_map(rs, centre0, q0):
+    """(4, 3): a free hub's motion since its hub centre was ``centre0`` [m] and its attitude
+    ``q0`` (fe.contact.impulses.body_snapshot) to its pose now, x -> A x + c with A = R R0^T, c =
+    C - A C0 (None without a body)."""
     if rs is None:
         return None
     R = rotation(rs.quaternion)
-    R0 = rotation(start[3:7])
+    R0 = rotation(q0)
     out = np.zeros((4, 3))
     for a in range(3):
         for b in range(3):
             out[a, b] = R[a, 0] * R0[b, 0] + R[a, 1] * R0[b, 1] + R[a, 2] * R0[b, 2]
     C = hub_centre(rs, R)
     for a in range(3):
-        out[3, a] = C[a] - (out[a, 0] * start[0] + out[a, 1] * start[1]
-                            + out[a, 2] * start[2])
+        out[3, a] = C[a] - (out[a, 0] * centre0[0] + out[a, 1] * centre0[1]
+                            + out[a, 2] * centre0[2])
     return out
 
 

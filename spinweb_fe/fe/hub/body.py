@@ -1,6 +1,6 @@
 """The free hub (``[hub] motion = "free"``): its phases of the step.
 
-The hub, its tied nodes and its held coil are one rigid body (:mod:`spinweb_fe.fe.rigid`) in
+The hub, its tied nodes and its held coil are one rigid body (:mod:`spinweb_fe.fe.hub.rigid`) in
 the same leapfrog as the cables, with the gravity gradient (:mod:`spinweb_fe.fe.tidal`) and the
 cable-hub contact against the moving hub:
 
@@ -22,15 +22,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.coil import gather_bundles, release_fronts, scatter_bundles
-from spinweb_fe.fe.line import line_energy, line_pairing
-from spinweb_fe.fe.brake import device_target
-from spinweb_fe.fe.payout import locate_devices, move_line
-from spinweb_fe.fe.contact import contact_free
+from spinweb_fe.fe.coil.bundles import gather_bundles, scatter_bundles
+from spinweb_fe.fe.coil.levels import release_fronts
 from spinweb_fe.fe.control import eval_control
-from spinweb_fe.fe.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
-                                 hub_centre, inv_inertia, mul, place_body, rotation,
-                                 spatial_inertia)
+from spinweb_fe.fe.hub.contact import contact_free
+from spinweb_fe.fe.hub.rigid import (body_energy, body_loads, cross, detach, dot, free_rotation,
+                                     hub_centre, inv_inertia, mul, rotation, spatial_inertia)
 from spinweb_fe.fe.tidal import body_tidal, tidal_accel, vertical
 
 
@@ -100,7 +97,7 @@ def body_kick(hub, coil, cs, env, rs, law, pos, force, t, dt):
     counts a reference for every array a call hands over.)"""
     R = rotation(rs.quaternion)
     F, T = body_loads(hub, coil, cs, rs.position, pos, force)
-    if coil.payout_code >= 2:  # a reel's or brake's line pulls at D (fe.payout)
+    if coil.device:  # a reel's or brake's line pulls at D (fe.coil.payout)
         T += cs.dev_moment
     Fg = np.zeros(3)
     Tg = np.zeros(3)
@@ -232,8 +229,8 @@ def body_drift(rs, bk, dt, theta):
 
 @njit(cache=True)
 def body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken):
-    """Releases of held levels at time t (fe.coil.release_fronts, outward from the hub's
-    axis where it is now) and, when some went, the body without them (fe.rigid.detach:
+    """Releases of held levels at time t (fe.coil.levels.release_fronts, outward from the hub's
+    axis where it is now) and, when some went, the body without them (fe.hub.rigid.detach:
     every point keeps its velocity)."""
     front = cs.front
     before = front.sum()
@@ -245,64 +242,6 @@ def body_release(body, elems, nodes, hub, coil, cs, rs, mv, t, broken):
                    frame)
     if front.sum() != before:
         detach(body, nodes, hub, coil, cs, rs)
-
-
-@njit(cache=True)
-def body_pose(rs):
-    """The pose rows of fe.payout.locate_devices of the free body now: its attitude, the hub
-    centre, the centre of mass, its velocity and angular velocity."""
-    R = rotation(rs.quaternion)
-    pose = np.empty((7, 3))
-    pose[0:3] = R
-    pose[3] = hub_centre(rs, R)
-    pose[4] = rs.position
-    pose[5] = rs.velocity
-    pose[6] = inv_inertia(rs, R, rs.momentum)
-    return pose
-
-
-@njit(cache=True)
-def body_devices(coil, body, cs, elems, nodes, hub, rs, mv, hs, t, dt):
-    """The reels or brakes of a scene with a free hub at the end of a step (fe.payout):
-    each arm's line moves to its device's target, the body sheds the mass that passes
-    (fe.rigid.detach: every point keeps its velocity) and takes the device's reaction (the
-    impulse and the moment that conserve momentum and angular momentum); each arm's
-    device work is the change of the energy its update makes (``coil`` None: nothing)."""
-    if coil is None:
-        return
-    pose = body_pose(rs)
-    locate_devices(coil, cs, pose)
-    out = np.zeros(7)
-    steps = np.empty((coil.test_elem.shape[0] + 1, 3))
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        lev = coil.arm_ptr[k] + cs.front[k]
-        if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
-            continue
-        if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
-            if s_new >= cs.s_dev[k]:
-                cs.dev_speed[k] = 0.0
-                continue
-        else:
-            s_new = cs.s_dev[k]
-        R = pose[0:3].copy()
-        steps[0, 0] = -1.0
-        e0 = (line_energy(coil, cs, k, elems, mv, lev, lev)
-              + body_energy(rs, R, rs.velocity, rs.momentum)
-              + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
-        out[:] = 0.0
-        move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out)
-        detach(body, nodes, hub, coil, cs, rs)
-        J = out[0:3]
-        rs.velocity[:] = rs.velocity - J / rs.mass[0]
-        rs.momentum[:] = rs.momentum + out[3:6] + cross(rs.position, J)
-        pose = body_pose(rs)
-        place_body(hub, coil, cs, rs, mv.pos, mv.vel)
-        e1 = (line_energy(coil, cs, k, elems, mv, lev, coil.arm_ptr[k] + cs.front[k])
-              + body_energy(rs, R, rs.velocity, rs.momentum)
-              + 0.5 * line_pairing(coil, cs, k, elems, mv, pose, lev, dt, steps))
-        cs.dev_work[k] += e1 - e0
-    hs.rate[0], hs.inertia[0] = body_state(rs)
 
 
 @njit(cache=True)

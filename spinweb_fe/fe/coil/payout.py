@@ -1,7 +1,7 @@
 """Payout devices: how a held coil lets its arm's line out (``[stowage] payout``), one
 registry entry each, and the kernels of the two that act on the line (docs/solver.md):
 
-- ``free``: the front level goes when the free part pulls it off the hub (fe.coil);
+- ``free``: the front level goes when the free part pulls it off the hub (fe.coil.levels);
 - ``gate``: as free, but never ahead of a law L(t): a latch that frees stowed levels no
   faster than the law (a burn-wire release of folded segments, say); it does no work;
 - ``rate``: a reel at each arm's departure point D that holds the line and lets it out at
@@ -27,11 +27,14 @@ kinetic energy of the nodes it touches and of the hub, strain energy of its elem
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.choice import Choice, Param, registry
-from spinweb_fe.fe.coil import level_masses
+from spinweb_fe.fe.coil.levels import level_masses
 from spinweb_fe.fe.law import length_strain, rate
 
 #: the last time of a constant law's table [s]: value v from 0 up to here
@@ -90,20 +93,38 @@ _LENGTH = (Param("payout_rate", "m/s", "pos", "payout = gate or rate: paid-out l
                  "rate t"),
            Param("payout_length", "s, m", None, "payout = gate or rate: [[t, L], ...] "
                  "paid-out length L at time t, linear between the points", kind="table"))
+@dataclass(frozen=True)
+class Payout(Choice):
+    """A payout law: ``device``, a reel or brake at each arm's departure point D (it holds
+    the line there, its tension turns the hub, its work is an energy term: fe.coil.payout's
+    phases, the ``devices`` feature); ``length_law``, a law of the paid-out length limits
+    the payout (``payout_allowed``). The kernels read them as ``Coil.device`` and
+    ``Coil.length_law``."""
+
+    device: bool = False
+    length_law: bool = False
+
+    @property
+    def anchors(self) -> bool:
+        """The arm hangs from its front (or its device), not from a free peel front."""
+        return self.device or self.length_law
+
+
 PAYOUTS = registry(
-    Choice("free", FREE, "the front advances when the free part pulls it off the hub",
+    Payout("free", FREE, "the front advances when the free part pulls it off the hub",
            analytic="the coiled regime: the arm leaves the hub tangentially"),
-    Choice("gate", GATE, "as free, but never ahead of the law (payout_rate or "
+    Payout("gate", GATE, "as free, but never ahead of the law (payout_rate or "
                          "payout_length): a latch that does no work",
            keys=_LENGTH, need=(("payout_rate", "payout_length"),),
-           check=_device("gate", _table_rule("payout_length", "lengths", True))),
-    Choice("rate", REEL, "a reel at each arm's departure point: the free length follows the "
+           check=_device("gate", _table_rule("payout_length", "lengths", True)),
+           length_law=True),
+    Payout("rate", REEL, "a reel at each arm's departure point: the free length follows the "
                          "law (payout_rate or payout_length)",
            keys=_LENGTH, need=(("payout_rate", "payout_length"),),
            check=_device("rate", _table_rule("payout_length", "lengths", True), "reel"),
            analytic="the paying regime: the arm hangs from its departure point, which the "
-                    "law moves back along the coil"),
-    Choice("brake", BRAKE, "a brake at each arm's departure point: the line slips while "
+                    "law moves back along the coil", device=True, length_law=True),
+    Payout("brake", BRAKE, "a brake at each arm's departure point: the line slips while "
                            "its tension there exceeds brake_force (or brake_force_table)",
            keys=(Param("brake_force", "N", "nonneg", "payout = brake: the brake force"),
                  Param("brake_force_table", "s, N", None, "payout = brake: [[t, N], ...] "
@@ -111,8 +132,15 @@ PAYOUTS = registry(
            need=(("brake_force", "brake_force_table"),),
            check=_device("brake", _table_rule("brake_force_table", "forces", False), "brake"),
            analytic="the braking regime: stick (the arm pivots about its departure point) "
-                    "and slip (the tension there equals the brake force)"),
+                    "and slip (the tension there equals the brake force)", device=True),
 )
+#: the entries by code (the solver's view)
+BY_CODE = {c.code: c for c in PAYOUTS.values()}
+
+
+def payout_of(coil) -> Payout:
+    """The payout law of a coil (fe.coil.levels.Coil), its registry entry."""
+    return BY_CODE[int(coil.payout_code)]
 
 
 @njit(inline="always")
@@ -204,30 +232,61 @@ def device_point(coil, k, lev, s):
     return np.array([r * np.cos(th), r * np.sin(th), pf[2] + a * (po[2] - pf[2])])
 
 
+class Pose(NamedTuple):
+    """The hub's pose and motion as the devices see it (fe.hub.axis.axis_pose, fe.hub.body.body_pose):
+    ``rot`` (3, 3) the attitude R (hub frame to world), ``centre`` (3,) [m] the hub centre o,
+    ``com`` (3,) [m] the body's centre of mass X, ``velocity`` (3,) [m/s] its V, ``omega``
+    (3,) [rad/s] its angular velocity (a fixed axis: o = X = V = 0, omega = w e_z)."""
+
+    rot: np.ndarray
+    centre: np.ndarray
+    com: np.ndarray
+    velocity: np.ndarray
+    omega: np.ndarray
+
+
+class LineReaction(NamedTuple):
+    """What an arm's line update gives the hub (:func:`move_line`, summed): ``impulse`` (3,)
+    [N s], the impulse J given to the line (its reaction -J acts on the hub at D);
+    ``moment`` (3,) [N m s], the angular impulse on the hub about the origin that conserves
+    angular momentum; ``inertia`` (1,) [kg m^2], the released nodes' model m (x^2 + y^2) at
+    their hub-frame places."""
+
+    impulse: np.ndarray
+    moment: np.ndarray
+    inertia: np.ndarray
+
+
+@njit(cache=True)
+def no_reaction():
+    """A :class:`LineReaction` of zeros."""
+    return LineReaction(np.zeros(3), np.zeros(3), np.zeros(1))
+
+
 @njit(cache=True)
 def locate_devices(coil, cs, pose):
-    """Every active device's D in the world, ``cs.dev_x`` = o + R r_D; ``pose`` (7, 3): the
-    rows of R, the hub centre o, the body's centre of mass X, its velocity V, its angular
-    velocity omega (a fixed axis: o = X = V = 0)."""
+    """Every active device's D in the world, ``cs.dev_x`` = o + R r_D (``pose``: the hub's
+    :class:`Pose`)."""
     for k in range(coil.arm_ptr.shape[0] - 1):
         cs.dev_x[k] = _world(pose, cs.dev_ref[k])
 
 
 @njit(inline="always")
 def _world(pose, r):
-    return pose[3] + np.array([pose[0, 0] * r[0] + pose[0, 1] * r[1] + pose[0, 2] * r[2],
-                               pose[1, 0] * r[0] + pose[1, 1] * r[1] + pose[1, 2] * r[2],
-                               pose[2, 0] * r[0] + pose[2, 1] * r[1] + pose[2, 2] * r[2]])
+    R = pose.rot
+    return pose.centre + np.array([R[0, 0] * r[0] + R[0, 1] * r[1] + R[0, 2] * r[2],
+                                   R[1, 0] * r[0] + R[1, 1] * r[1] + R[1, 2] * r[2],
+                                   R[2, 0] * r[0] + R[2, 1] * r[1] + R[2, 2] * r[2]])
 
 
 @njit(inline="always")
 def _hub_velocity3(pose, x0, x1, x2):
     """The velocity of the hub's material point at (x0, x1, x2), V + omega x (x - X), as
     three floats (no array: the device's inner loops run every step)."""
-    w, X = pose[6], pose[4]
+    w, X, V = pose.omega, pose.com, pose.velocity
     d0, d1, d2 = x0 - X[0], x1 - X[1], x2 - X[2]
-    return (pose[5, 0] + (w[1] * d2 - w[2] * d1), pose[5, 1] + (w[2] * d0 - w[0] * d2),
-            pose[5, 2] + (w[0] * d1 - w[1] * d0))
+    return (V[0] + (w[1] * d2 - w[2] * d1), V[1] + (w[2] * d0 - w[0] * d2),
+            V[2] + (w[0] * d1 - w[1] * d0))
 
 
 @njit(inline="always")
@@ -299,16 +358,14 @@ def move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out):
     of the front level's elements with the line's velocity there (D's own, ``pose`` at the
     old and the new place over ``dt``, and the line speed along the element); a front
     level the line passes is released (its nodes free with the hub's velocity at D, their
-    masses their own less the next front's outer halves). ``out`` (7,) += the impulse J
-    given to the line [N s] (its reaction -J acts on the hub at D), the angular impulse on
-    the hub about the origin that conserves angular momentum [N m s], and the released
-    nodes' model m (x^2 + y^2) at their hub-frame places [kg m^2]."""
+    masses their own less the next front's outer halves). ``out``: a :class:`LineReaction`
+    the update adds its reaction to."""
     pos, vel, mass, inv_mass = mv.pos, mv.vel, mv.mass, mv.inv_mass
     first, end = coil.arm_ptr[k], coil.arm_ptr[k + 1]
     lev = first + cs.front[k]
     s_old = cs.s_dev[k]
     if cs.front[k] == 0:  # a delayed arm's tip level goes free
-        out[6] += _release(coil, cs, k, nodes, mass, inv_mass, lev)
+        out.inertia[0] += _release(coil, cs, k, nodes, mass, inv_mass, lev)
         if lev + 1 < end:
             _open_level(coil, cs, k, lev + 1, mass, inv_mass)
             cs.dev_x[k] = _world(pose, cs.dev_ref[k])
@@ -347,19 +404,20 @@ def move_line(coil, cs, k, elems, nodes, mv, pose, s_new, dt, out):
             # the impulse J on the line and the angular impulse that keeps K on the hub:
             # -(x_m x J + (x_b - x_m) x dm v_in)
             j0, j1, j2 = dm * (v0 - vm0), dm * (v1 - vm1), dm * (v2 - vm2)
-            out[0] += j0
-            out[1] += j1
-            out[2] += j2
+            J, H = out.impulse, out.moment
+            J[0] += j0
+            J[1] += j1
+            J[2] += j2
             p0, p1, p2 = pos[b, 0] - x_m[0], pos[b, 1] - x_m[1], pos[b, 2] - x_m[2]
             g0, g1, g2 = dm * v0, dm * v1, dm * v2
-            out[3] -= (x_m[1] * j2 - x_m[2] * j1) + (p1 * g2 - p2 * g1)
-            out[4] -= (x_m[2] * j0 - x_m[0] * j2) + (p2 * g0 - p0 * g2)
-            out[5] -= (x_m[0] * j1 - x_m[1] * j0) + (p0 * g1 - p1 * g0)
+            H[0] -= (x_m[1] * j2 - x_m[2] * j1) + (p1 * g2 - p2 * g1)
+            H[1] -= (x_m[2] * j0 - x_m[0] * j2) + (p2 * g0 - p0 * g2)
+            H[2] -= (x_m[0] * j1 - x_m[1] * j0) + (p0 * g1 - p1 * g0)
             cs.dev_rest[k] -= dm
         s = s_stop
         if s > s_f:
             break
-        out[6] += _release(coil, cs, k, nodes, mass, inv_mass, lev)
+        out.inertia[0] += _release(coil, cs, k, nodes, mass, inv_mass, lev)
         lev += 1
         if lev >= end:
             cs.dev_rest[k] = 0.0

@@ -18,11 +18,12 @@ bundles open (each node keeps the bundle's velocity) when the arm has paid out a
 fraction of its length, or at a given time.
 
 Registries of the choices: :data:`COILS`, :data:`BUNDLES` (and the payout devices,
-:data:`spinweb_fe.fe.payout.PAYOUTS`).
+:data:`spinweb_fe.fe.coil.payout.PAYOUTS`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -43,18 +44,26 @@ COILS = registry(
     Choice("held", 1, "every coil node moves with the hub until its arm's peel front releases "
                       "it", analytic="the coil turns with the hub (every regime)"),
 )
+@dataclass(frozen=True)
+class Bundle(Choice):
+    """A bundle law: ``timed`` if its bundles open at a time (else at a paid-out length;
+    the kernel reads it as ``Coil.bundle_timed``)."""
+
+    timed: bool = False
+
+
 BUNDLES = registry(
-    Choice("none", 0, "every node moves on its own",
+    Bundle("none", 0, "every node moves on its own",
            analytic="the arm model: each arm a line of its own"),
-    Choice("until_length", 1, "levels move as one until the arm has paid out bundle_release "
+    Bundle("until_length", 1, "levels move as one until the arm has paid out bundle_release "
                               "times its length",
            keys=(Param("bundle_release", "1", "pos", "bundles open at this fraction of the "
                        "arm length (until_length) or time (until_time)"),),
            need=(("bundle_release",),), check=_release_fraction),
-    Choice("until_time", 2, "levels move as one until t = bundle_release",
+    Bundle("until_time", 2, "levels move as one until t = bundle_release",
            keys=(Param("bundle_release", "s", "pos", "bundles open at this fraction of the "
                        "arm length (until_length) or time (until_time)"),),
-           need=(("bundle_release",),)),
+           need=(("bundle_release",),), timed=True),
 )
 
 
@@ -92,14 +101,21 @@ class Coil(NamedTuple):
     coil_code : int
         The coil (:data:`COILS`): 1 held, 0 loose.
     payout_code : int
-        The payout device (fe.payout.PAYOUTS): 0 free, 1 gate, 2 reel ('rate'), 3 brake.
+        The payout (fe.coil.payout.PAYOUTS): 0 free, 1 gate, 2 reel ('rate'), 3 brake.
+    device : bool
+        The payout is a device at each arm's departure point (a reel or brake: the
+        registry entry's ``device``).
+    length_law : bool
+        A law limits the paid-out length (gate, reel: the entry's ``length_law``).
     law_t, law_v : (P,) float64 [s], [m] or [N]
         The device's law, linear between points, constant outside them (empty: none): the
         paid-out length (gate, reel) or the brake force (brake).
     test_half : (T,) float64 [kg]
         Half the mass of each free element (its share of each end node).
     bundle_code : int
-        0 none, 1 until_length, 2 until_time.
+        0 none, 1 until_length, 2 until_time (:data:`BUNDLES`).
+    bundle_timed : bool
+        The bundles open at a time, not at a length (the entry's ``timed``).
     bundle_value : float
         Fraction of the arm length, or the time [s].
     arm_hold : (n_arms,) float64 [s]
@@ -124,17 +140,20 @@ class Coil(NamedTuple):
     base_rim: np.ndarray
     coil_code: int
     payout_code: int
+    device: bool
+    length_law: bool
     law_t: np.ndarray
     law_v: np.ndarray
     test_half: np.ndarray
     bundle_code: int
+    bundle_timed: bool
     bundle_value: float
     arm_hold: np.ndarray
 
 
 class CoilState(NamedTuple):
     """Per arm: ``front`` (n_arms,) int64, the levels released; ``bundled`` (n_arms,) bool;
-    and a payout device's (fe.payout; zero without a reel or brake), each (n_arms,):
+    and a payout device's (fe.coil.payout; zero without a reel or brake), each (n_arms,):
 
     ``s_dev`` [m], the arm coordinate of the line at the device D (free length arm_end -
     s_dev); ``dev_rest`` [kg], the mass held at D (the front level's free elements' outer
@@ -165,7 +184,8 @@ def no_coil(n_arms: int = 0) -> Coil:
     return Coil(np.zeros(n_arms + 1, np.int64), i0, np.zeros(0, np.int64), np.zeros((0, 3)), f0,
                 f0, np.zeros(0, bool), i0, np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(0, np.int64), f0, np.zeros(n_arms), np.zeros(n_arms),
-                np.zeros(n_arms, bool), 0, 0, f0, f0, f0, 0, 0.0, np.zeros(n_arms))
+                np.zeros(n_arms, bool), 0, 0, False, False, f0, f0, f0, 0, False, 0.0,
+                np.zeros(n_arms))
 
 
 def coil_start(coil: Coil) -> CoilState:
@@ -176,7 +196,8 @@ def coil_start(coil: Coil) -> CoilState:
     held = coil.coil_code == COILS["held"].code
     front = np.where(coil.arm_hold > 0, 0, np.minimum(counts, 1)) if held else counts.copy()
     z = np.zeros(n_arms)
-    return CoilState(front.astype(np.int64), np.full(n_arms, coil.bundle_code > 0),
+    bundled = coil.bundle_code != BUNDLES["none"].code
+    return CoilState(front.astype(np.int64), np.full(n_arms, bundled),
                      coil.arm_end.copy(), z.copy(), np.zeros((n_arms, 3)), np.zeros((n_arms, 3)),
                      z.copy(), z.copy(), z.copy(), np.zeros(3), z.copy())
 
@@ -274,45 +295,6 @@ def held_moment(arm_ptr, front, level_ptr, level_nodes, pos, force):
 
 
 @njit(cache=True)
-def gather_bundles(coil, cs, force):
-    """The force (n, 3) on each released level of a bundled arm, summed on its spine node
-    (the other nodes' rows are cleared). ``coil`` None: a scene without bundles (numba
-    compiles nothing of it)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
-            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
-            m = coil.level_nodes[a]
-            for p in range(a + 1, b):
-                i = coil.level_nodes[p]
-                for d in range(3):
-                    force[m, d] += force[i, d]
-                    force[i, d] = 0.0
-
-
-@njit(cache=True)
-def scatter_bundles(coil, cs, pos, vel):
-    """The other nodes of each bundle take its spine node's position and velocity (``coil``
-    None: no bundles)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        for lev in range(coil.arm_ptr[k], coil.arm_ptr[k] + cs.front[k]):
-            a, b = coil.level_ptr[lev], coil.level_ptr[lev + 1]
-            m = coil.level_nodes[a]
-            for p in range(a + 1, b):
-                i = coil.level_nodes[p]
-                for d in range(3):
-                    pos[i, d] = pos[m, d]
-                    vel[i, d] = vel[m, d]
-
-
-@njit(cache=True)
 def law_value(tt, vv, t):
     """The value at time t of a law given at times ``tt`` (increasing) by ``vv``: linear
     between the points, constant outside them."""
@@ -327,7 +309,7 @@ def law_value(tt, vv, t):
 @njit(cache=True)
 def payout_allowed(coil, t):
     """Paid-out length [m] a gate or a reel allows at time t (inf: no such law)."""
-    if coil.payout_code != 1 and coil.payout_code != 2:  # fe.payout.PAYOUTS: gate, rate
+    if not coil.length_law:
         return np.inf
     return law_value(coil.law_t, coil.law_v, t)
 
@@ -375,8 +357,8 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
     hub and whose paid-out length would then not exceed the payout law's at time t (broken
     elements and the hub's ``frame``: see :func:`pulls`); an arm held whole until
     ``arm_hold`` releases its tip level then. Returns the hub's effective inertia without the
-    released nodes [kg m^2]. (A reel or a brake releases its levels itself: fe.payout.)"""
-    if coil.payout_code >= 2:
+    released nodes [kg m^2]. (A reel or a brake releases its levels itself: fe.coil.payout.)"""
+    if coil.device:
         return inertia
     allowed = payout_allowed(coil, t)
     for k in range(coil.arm_ptr.shape[0] - 1):
@@ -400,28 +382,6 @@ def release_fronts(coil, cs, elems, nodes, pos, mass, inv_mass, inertia, t, brok
     return inertia
 
 
-@njit(cache=True)
-def open_bundles(coil, cs, nodes, mass, inv_mass, t):
-    """Open the bundles of the arms that reached the release (length fraction or time):
-    every node keeps the bundle's position and velocity and gets its own mass back
-    (``coil`` None: no bundles)."""
-    if coil is None:
-        return
-    for k in range(coil.arm_ptr.shape[0] - 1):
-        if not cs.bundled[k]:
-            continue
-        if coil.bundle_code == 2:
-            due = t >= coil.bundle_value
-        else:
-            span = coil.arm_end[k] - coil.arm_base[k]
-            due = free_length(coil, cs, k) >= coil.bundle_value * span - 1e-12 * span
-        if due:
-            cs.bundled[k] = False
-            level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass,
-                         nodes.inv_mass, mass, inv_mass, coil.arm_ptr[k],
-                         coil.arm_ptr[k] + cs.front[k], cs.bundled[k])
-
-
 @njit(cache=True, no_cpython_wrapper=True)
 def front_row(coil, cs, k, t):
     """Arm k's held coil at time t: (front coordinate, next outer level's coordinate, 1 if
@@ -435,7 +395,7 @@ def front_row(coil, cs, k, t):
         return coil.arm_base[k], s_n, 1.0 if coil.base_rim[k] else 0.0, 0.0
     q = coil.test_ptr[lev]
     s_f = coil.level_coord[lev]
-    if coil.payout_code >= 2:  # a reel or brake: the line leaves at its device
+    if coil.device:  # a reel or brake: the line leaves at its device
         s_f = cs.s_dev[k]
     s_n = coil.test_to_coord[q] if q < coil.test_ptr[lev + 1] else s_f
     after = coil.arm_end[k] - (coil.level_coord[lev + 1] if lev + 1 < end else coil.arm_base[k])

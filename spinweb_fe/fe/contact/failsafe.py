@@ -1,0 +1,196 @@
+"""The cable contact's fail-safe (``[contact] cables = true``), after Bridson, Fedkiw and
+Anderson's cloth collisions: at the end of each step, every candidate pair that would pass
+through each other over the step gets equal and opposite impulses at its crossing points
+(:func:`resolve_crossings`), the pairs a round leaves crossing move as impact zones
+(fe.contact.zones), the friction's impulses come first, and the hub takes the reaction of
+what its held and tied nodes could not (:func:`contact_resolve`, fe.contact.impulses). The
+penalty of the step's start is fe.contact.penalty.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from spinweb_fe.fe.contact.broad import boxes_apart, swept_boxes
+from spinweb_fe.fe.contact.crossing import closest_points, moved_crosses, pair_crossings
+from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
+                                            impulse_work)
+from spinweb_fe.fe.contact.penalty import AGAIN, FRICTION, IMPULSES, IN_CONTACT, LEFT, TAKEN
+from spinweb_fe.fe.contact.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
+                                         pair_adjacency, pairs_of)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
+                    theta=0.0, again=False, place=True):
+    """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
+    Returns its impulses (0: the positions and the boxes stand) and the crossings its last
+    pass left (both 0: no pair of the list crossed in the step). The friction's impulses
+    first (``ck.mu`` > 0). ``rate``, ``inertia`` ((1,) arrays, a fixed axis's rate
+    omega_{n+1/2} and effective inertia): the hub takes the angular impulse about its axis
+    that the impulses gave the free nodes, so that nodes held on or tied to it (which take
+    no share of an impulse) push back through it (``ck.hub0.dw``: the rate's change).
+    ``body`` (fe.hub.rigid.RigidState, a free hub): the body takes the impulse and the moment
+    (fe.contact.impulses.body_reaction; ``ck.hub0.took`` when it did). The hub's motion over the
+    step (the fixed axis's turn to ``theta`` [rad], or the body's) moves the free nodes of
+    an impact zone that holds a node of the hub (fe.contact.zones). ``again``: a pass after the
+    hub, having taken a reaction, placed its nodes again (fe.step.settle): only the pairs
+    of the nodes it placed (inv_mass 0) and of the free nodes stuck to it this step (the
+    zones', ``ck.follow``, which take the reaction with it) are tested, without the
+    friction. ``place`` False: the hub's reaction changes its velocities only, not its
+    pose (fe.step.settle's last pass; fe.contact.impulses)."""
+    ck.vel1[:] = vel
+    h0 = ck.hub0
+    h0.dw[0] = 0.0
+    h0.took[0] = False
+    rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
+    if rubbed:
+        friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
+                          ck.mu)
+        ck.vel2[:] = vel
+    if rate is not None:
+        hub = axis_map(theta - h0.angle[0])
+    else:
+        hub = body_map(body, h0.centre, h0.quaternion)
+    if again:
+        _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
+                                       dt, ck.margin, ck.rounds, None, ZONE_ROUNDS, hub,
+                                       (inv_mass == 0.0) | ck.follow, ck.follow)
+    else:
+        ck.follow[:] = False
+        swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
+        _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
+                                       dt, ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub,
+                                       None, ck.follow)
+    if rubbed or n > 0:
+        # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
+        # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
+        # m dv / dt in the step's kick would), not the half-step kinetic energy's change,
+        # which leaves out J . dt a_n / 2 (the cables' and the penalty's forces)
+        work_hub = 0.0
+        if rate is not None:
+            dw = axis_reaction(pos, ck.vel1, vel, inv_mass, dt, inertia[0], ck.follow, place)
+            # the hub's work, paired as the nodes' (omega_{n-1/2} + omega_{n+1/2}) / 2
+            work_hub = inertia[0] * dw * (h0.rate[0] + rate[0] + dw) * 0.5
+            rate[0] += dw
+            h0.dw[0] = dw
+            h0.took[0] = dw != 0.0
+        if body is not None:
+            work_hub = body_reaction(body, pos, ck.vel1, vel, inv_mass, h0.velocity,
+                                     h0.omega, dt, ck.follow, place)
+            h0.took[0] = True
+        # (after the reaction, which the nodes stuck to the hub take too)
+        total = -impulse_work(ck.vel1, vel, ck.vel0, inv_mass) - work_hub
+        rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
+        ck.stats[FRICTION] += rub
+        ck.stats[TAKEN] += total - rub
+    ck.stats[IMPULSES] += n
+    ck.stats[LEFT] += left
+    if again:
+        ck.stats[AGAIN] += n
+    return n, left
+
+
+@njit(cache=True)
+def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
+                      box=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None, follow=None):
+    """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
+    every candidate pair that would pass through each other over the step (from ``pos0``
+    to ``pos1``, fe.contact.crossing's exact test) gets an impulse along the normal of the two
+    elements at the crossing, equal and opposite at their crossing points, that changes
+    their relative normal velocity so that they end the step ``margin`` [m] apart on the
+    side they came from; the nodes' half-step velocities and end positions are updated
+    (x_{n+1} by dt times the velocity's change). A node that does not move freely
+    (inv_mass 0: held on or tied to the hub) takes no share (its side is infinitely heavy
+    within the pass; the hub takes the reaction afterwards, :func:`contact_resolve`). The
+    first pass tests every pair, later passes (at most ``rounds`` in all) the pairs with a
+    node an impulse moved; ``box`` (m, 6), if given, the elements' swept boxes of the step
+    (fe.contact.crossing.swept_boxes) for the first pass. If the rounds run out with crossings
+    left, the pairs still crossing move as impact zones (fe.contact.zones: at most
+    ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
+    with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
+    a pass found the rest of the list clear (the hub's nodes, placed again after it took a
+    reaction): the first pass tests only their pairs. ``follow`` (n,) bool, if given: the
+    free nodes of zones moved with the hub get marked. Returns (kinetic energy the pair
+    impulses took [J], pair impulses, crossings left)."""
+    times = np.empty(3)
+    signs = np.empty(3, np.int64)
+    scratch, cuts = np.empty((4, 3)), np.empty(4)
+    taken, impulses, left = 0.0, 0, 0
+    first = 0 if moved is None else 1  # (a later pass's test from the start)
+    if moved is None:
+        moved = np.ones(pos0.shape[0], np.bool_)
+    todo = np.arange(pairs.shape[0])
+    adj = (todo, todo, todo)
+    for rnd in range(first, rounds):
+        now = np.zeros(pos0.shape[0], np.bool_)
+        left = 0
+        if rnd == 1:  # the pairs of each node, for the passes after the first (fe.contact.zones)
+            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
+        if rnd >= 1:
+            todo = pairs_of(adj, moved, rnd)
+        for p in todo:
+            e, g = pairs[p, 0], pairs[p, 1]
+            a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+            c, d = elem_nodes[g, 0], elem_nodes[g, 1]
+            if box is not None and rnd == 0:
+                if boxes_apart(box, e, g, 0.0) or pair_crossings(
+                        pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+                        pos1[d], times, signs, scratch, cuts) == 0:
+                    continue
+            elif not moved_crosses(pos0, pos1, moved, a, b, c, d, times, signs, scratch,
+                                   cuts):
+                continue
+            left += 1
+            tau = times[0]
+            xa = pos0[a] + tau * (pos1[a] - pos0[a])
+            xb = pos0[b] + tau * (pos1[b] - pos0[b])
+            xc = pos0[c] + tau * (pos1[c] - pos0[c])
+            xd = pos0[d] + tau * (pos1[d] - pos0[d])
+            s, t, _ = closest_points(xa, xb, xc, xd)
+            w = (1.0 - s) ** 2 * inv_mass[a] + s * s * inv_mass[b] \
+                + (1.0 - t) ** 2 * inv_mass[c] + t * t * inv_mass[d]
+            if w == 0.0:  # nothing free to push
+                continue
+            # the side the first element came from: the crossing points at the step's start
+            gap0 = (1.0 - s) * pos0[a] + s * pos0[b] - (1.0 - t) * pos0[c] - t * pos0[d]
+            d1, d2 = xb - xa, xd - xc
+            n = np.cross(d1, d2)
+            size = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+            scale = np.sqrt((d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2)
+                            * (d2[0] ** 2 + d2[1] ** 2 + d2[2] ** 2))
+            if size <= 1e-9 * scale:  # (nearly) parallel: the normal is the start's offset
+                u = d1 / np.sqrt(d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2)
+                n = gap0 - (gap0[0] * u[0] + gap0[1] * u[1] + gap0[2] * u[2]) * u
+                size = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+                if size == 0.0:
+                    continue
+            n /= size
+            dist0 = gap0[0] * n[0] + gap0[1] * n[1] + gap0[2] * n[2]
+            side = 1.0 if dist0 >= 0.0 else -1.0
+            vrel = (1.0 - s) * vel[a] + s * vel[b] - (1.0 - t) * vel[c] - t * vel[d]
+            vn = vrel[0] * n[0] + vrel[1] * n[1] + vrel[2] * n[2]
+            j = ((side * margin - dist0) / dt - vn) / w
+            ke0, ke1 = 0.0, 0.0
+            for i, f in ((a, 1.0 - s), (b, s), (c, -(1.0 - t)), (d, -t)):
+                if inv_mass[i] == 0.0:
+                    continue
+                ke0 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
+                for k in range(3):
+                    dv = f * j * inv_mass[i] * n[k]
+                    vel[i, k] += dv
+                    pos1[i, k] += dt * dv  # (not x_n + dt v: a node the hub placed or let go)
+                ke1 += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2) / inv_mass[i]
+                now[i] = True
+            taken += ke0 - ke1
+            impulses += 1
+        moved = now
+        if left == 0:
+            break
+    if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
+        if rounds == 1 and first == 0:
+            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
+        _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
+                               zone_rounds, hub, moved, adj, follow)
+    return taken, impulses, left
