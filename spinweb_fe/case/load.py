@@ -256,6 +256,9 @@ def _cross_check(src, scene, raw, t):
         if web["areal_density"] is not None:
             area = area_from_areal_density(
                 web["topology"], web["areal_density"], web["mesh_width"], t["cable"]["density"])
+            if not (math.isfinite(area) and area > 0):  # (a tiny density: it overflows)
+                raise InputError(src, "web.areal_density", f"gives a cable area of {area:g} "
+                                 "m^2 with this cable.density and mesh_width: not a cable")
             given = raw.get("cable", {}).get("area")
             # a resolved case (spinweb check, results.h5) holds both, equal: it reloads
             if given is not None and abs(t["cable"]["area"] - area) > 1e-12 * area:
