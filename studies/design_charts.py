@@ -43,6 +43,7 @@ from spinweb_fe.cli import main as cli
 from spinweb_fe.record import verdict
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.sweep import chart as ch
+from spinweb_fe.sweep import outputs  # noqa: F401
 from spinweb_fe.sweep import design as ds
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,6 +1,6 @@
 """Validation of the payout devices (issue 24, item 5): the reel (``payout = "rate"``) and
 the brake (``payout = "brake"``) of fe.coil.payout against their analytical twins (the paying
-regime of analytic.payout, the stick and slip of analytic.braking), with the numbers quoted
+regime of analytic.payout, the stick, slip and peel of analytic.brake), with the numbers quoted
 by docs/validation.md, section 0.5.
 
     .venv/bin/python -m studies.validate_payout [--only reel,held,brake,eq7,eq7brake,web,webbrake,explore,stiff]
@@ -15,8 +15,7 @@ Studies (each writes ``benchmarks/results/validation/payout_<study>.json``, most
 - ``held``: the same tethers braked at 42 and 45 kN, above the tips' pull, over 2 s:
   slip, then stick (the controlled regime);
 - ``brake``: the same tethers braked at 30 and 38 kN, over the analytical brake's span
-  (it ends where the arm comes back to its coil's tangent), the FE on to 0.3 s; the
-  analytical brake restarted from the FE's state (the slip's sensitivity to its start);
+  from t = 0 (the sweep over 0-50 kN: studies/validate_devices.py);
 - ``eq7``: stiff (1000x) Eq. 7 tethers (cases/paper_free_arms_eq7_stiff.toml), reel at 10
   and 20 m/s, and the bow of the heavy string in the FE frames;
 - ``web``: the paper's web reeled at 10 m/s (cases/paper_payout_web.toml): the energy
@@ -45,15 +44,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from benchmarks.common import machine
 from spinweb_fe import case as case_mod
-from spinweb_fe.analytic import braking
 from spinweb_fe.analytic.compare import analytic_twin, web_params
 from spinweb_fe.analytic.models import HALF_PI, params_from_case
-from spinweb_fe.analytic.solve import devices_from_case
-from spinweb_fe.case.scene import control_from_case, prepare
+from spinweb_fe.case.scene import prepare
 from spinweb_fe.errors import RunError
 from spinweb_fe.post.plot import plot_histories
 from spinweb_fe.record.energy import energy_balance
@@ -308,35 +304,6 @@ def reel_study():
 
 # --------------------------------------------------------------------------- brake
 
-def restart_brake(case, fe, t_s):
-    """The analytical brake restarted from the FE's state at t_s (arm 0): hub angle and
-    rate, phi, Psi = omega + phi' (central difference), L and L' (the FE payout speed);
-    slipping, to the first event (the tangent). Returns {time, arm_length, arm_angle,
-    hub_omega} on the FE's rows."""
-    p = params_from_case(case)
-    control = control_from_case(case)
-    _, brake = devices_from_case(case)
-    t = fe["time"]
-    i = int(np.argmin(np.abs(t - t_s)))
-    phi = fe["arm_angle"][:, 0]
-    psi = fe["hub_omega"][i] + (phi[i + 1] - phi[i - 1]) / (t[i + 1] - t[i - 1])
-    L = fe["arm_length"][i, 0]
-    Ld = 0.5 * (fe["payout_speed"][i, 0] + fe["payout_speed"][i + 1, 0])
-    y0 = [fe["hub_angle"][i], phi[i], fe["hub_omega"][i], psi, 0.0, 0.0, L, Ld]
-    w = 1.0
-    rhs = braking.rhs_factory(p, control, "slip", brake, w)
-    ev = braking.events(p, control, "slip", brake, w)
-    sol = solve_ivp(rhs, (t[i], t[-1]), y0, method="DOP853", rtol=1e-10, atol=1e-10,
-                    events=ev, dense_output=True)
-    tt = t[(t >= t[i]) & (t <= sol.t[-1])]
-    y = sol.sol(tt)
-    energy = np.array([braking.sample(p, control, "slip", tk, y[:, k], w, brake)[0]
-                       for k, tk in enumerate(tt)])
-    return {"t_s": float(t[i]), "end_s": float(sol.t[-1]), "message": sol.message,
-            "time": tt, "arm_length": y[6], "arm_angle": y[1], "hub_omega": y[2],
-            "energy": energy}
-
-
 def brake_run(path, force, sets, tag, H=50.0, end=0.3):
     cs = load(path, list(sets) + brake_sets(force, end))
     omega0 = cs.initial.omega
@@ -375,65 +342,17 @@ def brake_run(path, force, sets, tag, H=50.0, end=0.3):
     return rec, fe, an, cs
 
 
-def restarts(cs, fe, times=(0.005, 0.01, 0.02)):
-    """The analytical brake restarted from the FE's state at ``times`` against the FE over
-    its span: the norms (arm 0) and the brake's work from the restart to the span's end.
-    Returns (records, the first restart's history with its work per arm for the figure)."""
-    out, first = {}, None
-    H = cs.tethers.length
-    for ts in times:
-        r = restart_brake(cs, fe, ts)
-        n = len(r["time"])
-        i0 = int(np.argmin(np.abs(fe["time"] - r["t_s"])))
-        fl = fe["arm_length"][i0:i0 + n, 0]
-        dL = np.abs(fl - r["arm_length"])
-        dphi = np.abs(fe["arm_angle"][i0:i0 + n, 0] - r["arm_angle"])
-        dw = np.abs(fe["hub_omega"][i0:i0 + n] - r["hub_omega"])
-        w_fe = fe["brake_work"][i0 + n - 1].sum() - fe["brake_work"][i0].sum()
-        w_an = r["energy"][-1] - r["energy"][0]  # no torque: the brake's work
-        out[f"from_{ts:g}s"] = {
-            "an_end_s": r["end_s"], "message": r["message"],
-            "L_max_over_H": float(dL.max() / H),
-            "L_rms_over_H": float(np.sqrt(np.mean(dL ** 2)) / H),
-            "phi_max_rad": float(dphi.max()), "phi_rms_rad": float(np.sqrt(np.mean(dphi ** 2))),
-            "hub_rms_over_omega0": float(np.sqrt(np.mean(dw ** 2)) / cs.initial.omega),
-            "work_fe_J": float(w_fe), "work_an_J": float(w_an),
-            "work_rel": float((w_fe - w_an) / abs(w_an)),
-            "L_end_an_m": float(r["arm_length"][-1]), "L_end_fe_m": float(fl[-1])}
-        # the same to 2 ms before the analytical end (its line runs away at the tangent:
-        # the payout speed diverges, and with it the last rows' work)
-        m = int(np.searchsorted(r["time"], r["end_s"] - 0.002))
-        if m > 1:
-            w_fe2 = fe["brake_work"][i0 + m - 1].sum() - fe["brake_work"][i0].sum()
-            w_an2 = r["energy"][m - 1] - r["energy"][0]
-            out[f"from_{ts:g}s"]["to_2ms_before_end"] = {
-                "end_s": float(r["time"][m - 1]),
-                "L_rms_over_H": float(np.sqrt(np.mean(dL[:m] ** 2)) / H),
-                "phi_rms_rad": float(np.sqrt(np.mean(dphi[:m] ** 2))),
-                "hub_rms_over_omega0": float(np.sqrt(np.mean(dw[:m] ** 2)) / cs.initial.omega),
-                "work_fe_J": float(w_fe2), "work_an_J": float(w_an2),
-                "work_rel": float((w_fe2 - w_an2) / abs(w_an2))}
-        if first is None:
-            r["brake_work"] = fe["brake_work"][i0, 0] + (r["energy"] - r["energy"][0]) \
-                / cs.tethers.count
-            first = r
-    return out, first
-
-
 def braked_tethers(path, sets, tag, label, name, title):
-    """Tethers braked at BRAKE_FORCES from t = 0 and restarted from the FE's state: records,
-    report, figure ``payout_<name>.png`` and ``payout_<name>.json``."""
+    """Tethers braked at BRAKE_FORCES from t = 0: records, report, figure
+    ``payout_<name>.png`` and ``payout_<name>.json`` (the sweep over the forces from t = 0
+    is studies/validate_devices.py)."""
     recs, curves, marks, extra = {}, [], [], []
     for force, colour in zip(BRAKE_FORCES, ("C0", "C3")):
         rec, fe, an, cs = brake_run(path, force, sets, f"brake_{tag}_{force:g}")
-        rec["restarted_from_fe"], r = restarts(cs, fe)
-        extra.append((f"analytic {force / 1e3:g} kN, restarted from the FE at 5 ms", r, colour))
         recs[f"brake_{force / 1e3:g}kN"] = rec
         report(f"{label} {force / 1e3:g} kN (0-{rec['an_end_s']:.3f} s)", rec)
         print(f"   work {rec['work']['rel']:.2e}, FE tangent {rec['fe_tangent_s']}, FE L end "
               f"{rec['fe_L_end_m'][0]:.1f} m", flush=True)
-        for k, v in rec["restarted_from_fe"].items():
-            print(f"   restarted {k}: {v}", flush=True)
         curves.append((f"{force / 1e3:g} kN", fe, an, colour))
         marks.append(rec["an_end_s"])
     plot_device(curves, IMG / f"payout_{name}.png", title, t_max=0.2, t_marks=marks,

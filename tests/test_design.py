@@ -20,6 +20,8 @@ from spinweb_fe.cli import main
 from spinweb_fe.record import verdict
 from spinweb_fe.sweep import chart as ch
 from spinweb_fe.sweep import design as ds
+from spinweb_fe.sweep import outputs
+from spinweb_fe.sweep import verify as vf
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = ROOT / "cases" / "paper_free_arms.toml"
@@ -68,7 +70,7 @@ def test_search_finds_the_least_torque_that_deploys(tmp_path):
     path = write(tmp_path, SMALL)
     d = ds.load_design(path)
     points = ds.search(d, ds.Evaluator(d))
-    best = ch.candidates(d, points)[0]
+    best = vf.candidates(d, points)[0]
     m0 = best.values["control.M0"]
     ok, peak = independent(path, {"control.M0": m0})
     assert ok and peak <= 2e6
@@ -99,10 +101,10 @@ def test_margin_is_negative_exactly_when_a_requirement_fails(tmp_path):
 def test_safe_step_moves_away_from_the_failures(tmp_path):
     d = ds.load_design(write(tmp_path, SMALL))
     pts = [ds.evaluate(d, {"control.M0": x}) for x in (1e4, 1.5e6)]
-    up = ch.safe_step(d, pts[1], pts, 0)
+    up = vf.safe_step(d, pts[1], pts, 0)
     assert up["control.M0"] > 1.5e6
     assert math.isclose(d.to_unit(up)[0] - d.to_unit(pts[1].values)[0], d.refine_step)
-    assert ch.safe_step(d, pts[1], pts, 10) is None  # beyond the search range
+    assert vf.safe_step(d, pts[1], pts, 10) is None  # beyond the search range
 
 
 def test_two_keys_by_differential_evolution(tmp_path):
@@ -111,7 +113,7 @@ def test_two_keys_by_differential_evolution(tmp_path):
     path = write(tmp_path, text.replace('minimise = "peak_torque"',
                                         'minimise = "peak_torque"\nmaxiter = 5'))
     d = ds.load_design(path)
-    best = ch.candidates(d, ds.search(d, ds.Evaluator(d)))[0]
+    best = vf.candidates(d, ds.search(d, ds.Evaluator(d)))[0]
     ok, peak = independent(path, best.values)
     assert ok and math.isclose(peak, best.objective, rel_tol=1e-9)
     # the 1-D searches at fixed lengths give least peak torques of 6.30e5 (4 m), 5.74e5
@@ -176,7 +178,7 @@ def test_chart_least_torque_by_bisection(tmp_path):
     assert rows[1]["least"] > 2 * rows[0]["least"]
     for r in rows:  # no FE checks in this test
         r["fe_above"] = r["fe_below"] = None
-    ch.write_chart(d, rows, tmp_path / "c")
+    outputs.write_chart(d, rows, tmp_path / "c")
     with open(tmp_path / "c" / "chart.csv") as fh:
         table = list(csv.DictReader(fh))
     assert [float(t["least control.M0"]) for t in table] == [r["least"] for r in rows]

@@ -14,6 +14,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -27,7 +28,11 @@ from spinweb_fe.cli import main
 from spinweb_fe.io import vtk
 
 CASES = Path(__file__).parent.parent / "cases"
-DEMO = str(CASES / "demo.toml")
+#: the demo without its failure strain: its strength columns and frame data (utilisation,
+#: broken) fill the 2 MB a few rows in, where these tests need tens of rows and frames
+DEMO = str(Path(tempfile.mkdtemp(prefix="spinweb-demo-")) / "demo.toml")
+Path(DEMO).write_text("\n".join(line for line in (CASES / "demo.toml").read_text().splitlines()
+                                if not line.startswith("failure_strain")) + "\n")
 FAILED = re.compile(r"spinweb: run failed: stopped at t = [0-9.e+-]+ s: .*no space left on "
                     r"device.*")
 LEFTOVERS = ("*.tmp", ".*.vtu", "frames/.*.vtu", ".reserve", "run.lock", ".previous")

@@ -63,13 +63,25 @@ def _kin(p: ArmParams, phi, omega, L, Ld, w):
     return beta, u, m_f, S, I, p.root_density(L)
 
 
+def tangent_gap(p: ArmParams, phi, L, w) -> float:
+    """eps = w beta + pi/2 [rad]: the arm's angle from its coil's tangent at D (0: tangent,
+    pi/2: radial, pi: over its coil)."""
+    return w * (phi + w * (p.H - L) / p.r0) + 0.5 * math.pi
+
+
+def one_plus(p: ArmParams, phi, L, w) -> float:
+    """1 + w sin(beta) = 2 sin^2(eps / 2), without the cancellation near the tangent (where
+    the line's slip through D, L' (1 + w sin beta), vanishes)."""
+    return 2.0 * math.sin(0.5 * tangent_gap(p, phi, L, w)) ** 2
+
+
 def rows(p: ArmParams, phi, omega, psi, L, Ld, w):
     """Coefficients (a11, a12, b1, a21, a22, b2) of a11 omega' + a12 Psi' = b1 + M,
     a21 omega' + a22 Psi' = b2 in the paying regime (L'' = 0)."""
     beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
     n, r0 = p.n, p.r0
     cb, sb = math.cos(beta), math.sin(beta)
-    r1 = n * (r0 * rho0 * Ld * Ld * (w + sb) + 2.0 * r0 * m_f * Ld * psi * cb
+    r1 = n * (r0 * rho0 * Ld * Ld * w * one_plus(p, phi, L, w) + 2.0 * r0 * m_f * Ld * psi * cb
               - r0 * S * sb * (psi * psi - u * u) + 2.0 * S * Ld * psi)
     return (p.J0 + n * r0 * S * cb, n * (r0 * S * cb + I), -r1,
             r0 * S * cb, I, -(r0 * S * u * u * sb + 2.0 * S * Ld * psi))
@@ -79,11 +91,12 @@ def invariants(p: ArmParams, phi, omega, psi, L, Ld, w):
     """(E [J], K [N m s]) of hub, coil and free arms in the paying regime."""
     beta, u, m_f, S, I, _ = _kin(p, phi, omega, L, Ld, w)
     n, r0 = p.n, p.r0
-    cb, sb = math.cos(beta), math.sin(beta)
+    cb = math.cos(beta)
+    opw = one_plus(p, phi, L, w)  # |v_D + L' u|^2 = r0^2 omega^2 + 2 L' opw (w r0 omega + L')
     E = (0.5 * (p.J_hub + n * (p.m_arm - m_f) * r0 * r0) * omega * omega
-         + n * (0.5 * m_f * (r0 * r0 * u * u + Ld * Ld + 2.0 * r0 * u * Ld * sb)
+         + n * (0.5 * m_f * (r0 * r0 * omega * omega + 2.0 * Ld * opw * (w * r0 * omega + Ld))
                 + 0.5 * I * psi * psi + r0 * u * psi * S * cb))
-    K = p.J0 * omega + n * (r0 * m_f * Ld * (w + sb) + r0 * S * cb * (psi + u) + I * psi)
+    K = p.J0 * omega + n * (r0 * m_f * Ld * w * opw + r0 * S * cb * (psi + u) + I * psi)
     return E, K
 
 
@@ -92,8 +105,8 @@ def tension(p: ArmParams, phi, omega, psi, omega_dot, L, Ld, w) -> float:
     N = m_f r0 (u^2 cos beta - u' sin beta) + S Psi^2 - rho0 L'^2 (1 + w sin beta)."""
     beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
     cb, sb = math.cos(beta), math.sin(beta)
-    return m_f * p.r0 * (u * u * cb - omega_dot * sb) + S * psi * psi - rho0 * Ld * Ld * (
-        1.0 + w * sb)
+    return (m_f * p.r0 * (u * u * cb - omega_dot * sb) + S * psi * psi
+            - rho0 * Ld * Ld * one_plus(p, phi, L, w))
 
 
 def tip_rate(p: ArmParams, phi, omega, psi, L, Ld, w) -> float:
@@ -130,22 +143,53 @@ def line_tension(p: ArmParams, phi, omega, psi, omega_dot, L, Ld, Ldd, w) -> flo
     return m_f * p.r0 * (u * u * math.cos(beta) - ud * math.sin(beta)) - m_f * Ldd + S * psi * psi
 
 
+def length_row(p: ArmParams, phi, omega, psi, L, Ld, w):
+    """Lagrange's equation of the free length (per arm) without the device's force:
+    a (omega', Psi', L'') = c - N opw, N the device's force against the slip (its power is
+    -N L' opw, opw = 1 + w sin beta). From T = J0 omega^2/2 + n [m_f opw (w r0 omega L' +
+    L'^2) + (r0 omega + w L') S cos beta Psi + I Psi^2/2] (docs/analytic.md 4c)."""
+    beta, _, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
+    r0 = p.r0
+    cb = math.cos(beta)
+    opw = one_plus(p, phi, L, w)
+    a = (r0 * m_f * w * opw, w * S * cb, 2.0 * m_f * opw)
+    c = (Ld * Ld * (cb * m_f / r0 - opw * rho0) + 2.0 * w * cb * m_f * Ld * (omega - psi)
+         + psi * psi * S * opw + cb * m_f * omega * omega * r0)
+    return a, c, opw
+
+
+def device_force(p: ArmParams, phi, omega, psi, omega_dot, psi_dot, L, Ld, Ldd, w) -> float:
+    """The force [N] a reel or brake at D exerts against the line's slip, from the free
+    length's equation: its power is -N L' (1 + w sin beta) per arm (for a point mass on a
+    massless line, the line's tension at D). On the coil's tangent, where the slip and the
+    equation vanish together, the line's tension (:func:`line_tension`), its limit."""
+    a, c, opw = length_row(p, phi, omega, psi, L, Ld, w)
+    if opw < 1e-8:
+        return line_tension(p, phi, omega, psi, omega_dot, L, Ld, Ldd, w)
+    return (c - a[0] * omega_dot - a[1] * psi_dot - a[2] * Ldd) / opw
+
+
 def slip_rows(p: ArmParams, phi, omega, psi, L, Ld, w, force):
     """(A (3, 3), b (3,)) of the slipping brake: A (omega', Psi', L'') = b + (M, 0, 0):
     the total angular momentum (K' = M), the moment of momentum of the free part about the
-    moving D (H_D' + v_D x p = 0) and the line's tension at D equal to the brake ``force``,
-    each with the L'' the law no longer gives (docs/analytic.md)."""
+    moving D (H_D' + v_D x p = 0; both as the reel's, and Lagrange's) and Lagrange's
+    equation of the free length with the brake's ``force`` against the slip, whose power
+    is -force L' (1 + w sin beta): the energy balance holds whatever the line's mass
+    (the line's tension at D equal to the force, the momentum balance of the free part
+    along the line, lets the rigid arm's transverse force at D work on the material that
+    enters there, and near the coil's tangent runs away; for a point mass on a massless
+    line the two are the same; docs/analytic.md 4c)."""
     beta, u, m_f, S, I, rho0 = _kin(p, phi, omega, L, Ld, w)
     n, r0 = p.n, p.r0
     cb, sb = math.cos(beta), math.sin(beta)
-    r1 = n * (r0 * rho0 * Ld * Ld * (w + sb) + 2.0 * r0 * m_f * Ld * psi * cb
+    a, c, opw = length_row(p, phi, omega, psi, L, Ld, w)
+    r1 = n * (r0 * rho0 * Ld * Ld * w * opw + 2.0 * r0 * m_f * Ld * psi * cb
               - r0 * S * sb * (psi * psi - u * u) + 2.0 * S * Ld * psi)
     A = np.array([[p.J0 + n * r0 * S * cb, n * (r0 * S * cb + I),
-                   n * (r0 * m_f * (w + sb) + w * S * cb)],
+                   n * (r0 * m_f * w * opw + w * S * cb)],
                   [r0 * S * cb, I, w * S * cb],
-                  [m_f * r0 * sb, 0.0, m_f * (1.0 + w * sb)]])
-    b = np.array([-r1, -(r0 * S * u * u * sb + 2.0 * S * Ld * psi),
-                  m_f * r0 * u * u * cb + S * psi * psi - force])
+                  a])
+    b = np.array([-r1, -(r0 * S * u * u * sb + 2.0 * S * Ld * psi), c - force * opw])
     return A, b
 
 
@@ -155,7 +199,6 @@ def slip_accelerations(A, b, torque=None, omega_dot=None):
     if omega_dot is None:
         x = np.linalg.solve(A, b + np.array([torque, 0.0, 0.0]))
         return x[0], x[1], x[2], torque
-    Ldd = (b[2] - A[2, 0] * omega_dot) / A[2, 2]
-    psi_dot = (b[1] - A[1, 0] * omega_dot - A[1, 2] * Ldd) / A[1, 1]
+    psi_dot, Ldd = np.linalg.solve(A[1:, 1:], b[1:] - A[1:, 0] * omega_dot)
     M = A[0, 0] * omega_dot + A[0, 1] * psi_dot + A[0, 2] * Ldd - b[0]
     return omega_dot, psi_dot, Ldd, M

@@ -129,6 +129,11 @@ def _coerce(src, dotted, field: Field, value):
         return _table(src, dotted, value)
     elif kind == "vector":
         return _vector(src, dotted, field, value)
+    elif kind == "names":
+        if not (isinstance(value, list) and value and all(isinstance(x, str) for x in value)):
+            raise InputError(src, dotted, f"expected a non-empty list of names, got {value!r}")
+        one = Field("str", check=field.check)
+        return tuple(_coerce(src, dotted, one, x) for x in value)
     chk = field.check
     if isinstance(chk, tuple):
         if value not in chk:

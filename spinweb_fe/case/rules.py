@@ -58,6 +58,9 @@ def cross_check(src, scene, raw, t):
         if web["areal_density"] is not None:
             area = area_from_areal_density(
                 web["topology"], web["areal_density"], web["mesh_width"], t["cable"]["density"])
+            if not (math.isfinite(area) and area > 0):  # (a tiny density: it overflows)
+                raise InputError(src, "web.areal_density", f"gives a cable area of {area:g} "
+                                 "m^2 with this cable.density and mesh_width: not a cable")
             given = raw.get("cable", {}).get("area")
             # a resolved case (spinweb check, results.h5) holds both, equal: it reloads
             if given is not None and abs(t["cable"]["area"] - area) > 1e-12 * area:
@@ -104,7 +107,7 @@ def _check_layers(src, scene, t):
     if st["bundle"] != "none":
         raise InputError(src, "fold.layer_gap", "a bundle (stowage.bundle) moves each level "
                          "as one point, its layers merged: needs layer_gap = 0")
-    if scene == "web" and PAYOUTS[st["payout"]].code >= PAYOUTS["rate"].code:
+    if scene == "web" and PAYOUTS[st["payout"]].device:
         raise InputError(src, "fold.layer_gap", f"a {st['payout']} device lets each level out "
                          "at one point: needs layer_gap = 0 on a web")
 

@@ -15,7 +15,7 @@ from spinweb_fe.fe.coil.levels import BUNDLES, COILS
 from spinweb_fe.fe.control import LAWS
 from spinweb_fe.fe.model import MOTIONS
 from spinweb_fe.fe.coil.payout import PAYOUTS
-from spinweb_fe.record.verdict import DEFAULTS as VERDICT
+from spinweb_fe.record.criteria import LIMITS as VERDICT_LIMITS
 
 REQUIRED = object()  # marker: the key has no default
 
@@ -31,7 +31,8 @@ class Field:
     """One case key: its type, default, and check.
 
     kind: 'float' | 'int' | 'str' | 'bool' (true / false) | 'table' (a list of [t, value]
-    pairs of numbers) | 'vector' (a list of three numbers, the check applies to each);
+    pairs of numbers) | 'vector' (a list of three numbers, the check applies to each) |
+    'names' (a non-empty list of strings, each one of the check's);
     check: 'pos' (> 0), 'nonneg' (>= 0),
     'frac' (0 < x <= 1), 'finite', 'nonzero', a tuple of allowed strings, or None.
     """
@@ -162,28 +163,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "orbit_tilt": F("float", 0.0, "finite", "rad", "gravity gradient: angle of the orbit "
                         "normal from the spin axis +z, about +x"),
     },
-    "verdict": {
-        "deployed_fraction": F("float", VERDICT["deployed_fraction"], "frac", "", "deployed: "
-                               "every tip at least this share of its deployed distance from "
-                               "the hub axis, and staying there to the end"),
-        "deploy_by": F("float", VERDICT["deploy_by"], "pos", "s", "deployed: by this time "
-                       "(default: any time before the end)"),
-        "recoil": F("float", VERDICT["recoil"], "pos", "", "re-coil: a tip falling back toward "
-                    "the hub from its farthest by more than this share of its arm's "
-                    "deployed length"),
-        "slack_share": F("float", VERDICT["slack_share"], "frac", "", "slack: at most this "
-                         "share of the cable elements without tension at the end"),
-        "swing": F("float", VERDICT["swing"], "pos", "rad", "swing: the largest in-plane "
-                   "swing of an arm after deployment (half the range of phi)"),
-        "flatness": F("float", VERDICT["flatness"], "pos", "", "flatness: the web's largest "
-                      "distance from the hub plane at the end, per deployed arm length"),
-        "energy": F("float", VERDICT["energy"], "pos", "", "energy audit: the balance closed "
-                    "within this share of the energy scale"),
-        "momentum": F("float", VERDICT["momentum"], "pos", "", "momentum audit: K - K0 - "
-                      "torque impulse within this share of max |K|"),
-        "crossings": F("int", VERDICT["crossings"], "nonneg", "", "tangled: more crossings "
-                       "of cable elements than this (needs audit.crossings)"),
-    },
+    "verdict": {k: F(lim.kind, lim.default, lim.check, lim.unit, lim.doc)
+                for k, lim in VERDICT_LIMITS.items()},
     "contact": {
         "cables": F("bool", False, None, "", "cable-cable contact: elements that share no "
                     "node repel closer than twice cable_radius (a penalty as stiff as the "

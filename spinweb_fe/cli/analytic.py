@@ -51,9 +51,11 @@ def run(args) -> int:
     analytic.write(path, case, result, rtol=rtol, atol=atol)
     h = result.history
     dk, de = analytic.drifts(result)
+    e_text = (f"device work {h['brake_work'][-1].sum():.4g} J (its energy balance)"
+              if "brake_work" in h else f"max|E drift|={np.max(np.abs(de)):.3e}")
     print(f"{path}: model={model} t={h['time'][-1]:.6g} s  L={h['arm_length'][-1, 0]:.6g} m  "
           f"omega={h['hub_omega'][-1]:.6g} rad/s  max|K drift|={np.max(np.abs(dk)):.3e}  "
-          f"max|E drift|={np.max(np.abs(de)):.3e}"
+          + e_text
           + (f"  STOPPED: {result.stopped}" if result.stopped else ""))
     if result.stopped:
         from spinweb_fe.errors import RunError

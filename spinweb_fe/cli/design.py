@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from spinweb_fe.errors import InputError, RunError
+from spinweb_fe.record.criteria import required
 
 log = logging.getLogger(__name__)
 
@@ -34,6 +35,8 @@ def add_parser(sub):
     p.add_argument("--no-fe", action="store_true",
                    help="analytical search only: no FE verification (no FE-checked chart "
                         "points)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bars (they show only on a terminal, not under CI)")
     p.add_argument("--force", action="store_true",
                    help="start more workers than this machine can hold (docs/sweep.md)")
     return p
@@ -51,8 +54,8 @@ def _print_table(cols, rows):
 
 
 def _client(args, d):
+    from spinweb_fe.sweep.cluster import dask_client
     from spinweb_fe.sweep.limits import check_workers
-    from spinweb_fe.sweep.run import dask_client
 
     if args.scheduler and args.workers != 2:
         log.warning("--workers is ignored with --scheduler (the cluster has its own workers)")
@@ -79,6 +82,10 @@ def _claim(out, what):
         yield
 
 
+def _ran(name, stage, seconds, what="runs") -> str:
+    return f"{name} {stage.done} {what} in {seconds:.1f} s"
+
+
 def run(args) -> int:
     from spinweb_fe.io.folder import check_writable
 
@@ -87,71 +94,105 @@ def run(args) -> int:
     out = Path(args.output) if args.output else Path("out") / Path(args.design).stem
     if args.chart:
         return _chart(args, out, check_writable)
-    from spinweb_fe.sweep import chart as ch
     from spinweb_fe.sweep import design as ds
+    from spinweb_fe.sweep import outputs
+    from spinweb_fe.sweep import verify as vf
+    from spinweb_fe.run.progress import Stage, enabled
 
     d = ds.load_design(args.design)
     check_writable(out)
     with _claim(out, "design"):
-        return _design(args, d, out)
+        return _design(args, d, out, ds, outputs, vf, Stage, enabled)
 
 
-def _design(args, d, out) -> int:
-    from spinweb_fe.sweep import chart as ch
-    from spinweb_fe.sweep import design as ds
-
+def _design(args, d, out, ds, outputs, vf, Stage, enabled) -> int:
+    show = enabled(not args.no_progress)
     t0 = time.perf_counter()
-    ev = ds.Evaluator(d)
-    points = ds.search(d, ev)
-    t_search = time.perf_counter() - t0
-    n_ok = sum(p.feasible for p in points)
-    print(f"analytic search: {len(points)} solves of the consistent model in {t_search:.1f} s, "
-          f"{n_ok} pass (" + ("scan + bisection + bounded Brent" if len(d.keys) == 1
-                              else "differential evolution") + ")")
-    cands = ch.candidates(d, points)
-    timing = {"search": t_search}
-    if not cands:
-        near = max(points, key=lambda p: p.margin)
-        ch.write_design(d, points, [], None, out, timing)
-        raise RunError(f"no design: no {', '.join(d.keys)} within the search range passes "
-                       f"({', '.join(d.require or ('every criterion',))}) and meets the "
-                       f"bounds on the analytical model; the closest, "
-                       + ", ".join(f"{k} = {v:.4g}" for k, v in near.values.items())
-                       + f", fails {', '.join(near.failed) or near.status} "
-                       f"(margin {near.margin:.3g}); see {out / 'design.json'}")
-    if args.no_fe:
-        best = cands[0]
-        pairs = []
-        print("design (analytic only): " + ", ".join(f"{k} = {v:.6g}" for k, v in
-                                                      best.values.items())
-              + f", {d.minimise} = {best.objective:.5g}")
-        paths = ch.write_design(d, points, [], None, out, timing)
-        print(f"wrote {paths['csv']}, {paths['json']}, {paths['png']} (no FE: no design.toml)")
-        return 0
-    t1 = time.perf_counter()
+    timing, ran = {}, []
     with _client(args, d) as client:
-        pairs = ch.verify(d, client, cands, points, out)
-    timing["fe"] = time.perf_counter() - t1
+        with Stage("analytic search", None, show, unit="solve") as st:
+            ev = ds.Evaluator(d, client=client, stage=st)
+            points = ds.search(d, ev)
+        timing["search"] = time.perf_counter() - t0
+        ran.append(f"analytic search {len(points)} solves of the consistent model ("
+                   + ", ".join(f"{k} {v}" for k, v in ev.counts.items())
+                   + f") in {timing['search']:.1f} s on {_where(args)}")
+        cands = vf.candidates(d, points)
+        info = {"timing_s": timing, "stages": ran}
+        if not cands:
+            reason, evidence = ds.diagnose(d, points)
+            info.update(no_design=reason, evidence=evidence)
+            outputs.write_design(d, points, [], None, out, info)
+            print("stages: " + "; ".join(ran))
+            raise RunError(f"no design: no {', '.join(d.keys)} within the search range passes "
+                           f"({', '.join(required(d.require))}) and meets the bounds on the "
+                           f"analytical model: {reason}; see {out / 'design.json'}")
+        if args.no_fe:
+            best = cands[0]
+            paths = outputs.write_design(d, points, [], None, out, info)
+            print("stages: " + "; ".join(ran))
+            print("design (analytic only): " + ", ".join(f"{k} = {v:.6g}" for k, v in
+                                                          best.values.items())
+                  + f", {d.minimise} = {best.objective:.5g}")
+            print(f"wrote {paths['csv']}, {paths['json']}, {paths['png']} (no FE: no "
+                  "design.toml)")
+            return 0
+        warmed, t1 = set(), time.perf_counter()
+        with Stage("FE verification", len(cands), show) as fe_st, \
+                Stage("FE refinement", None, show) as ref_st:
+            pairs = vf.verify(d, client, cands, points, out, (fe_st, ref_st), warmed)
+        timing["fe"] = time.perf_counter() - t1
+        ran.append(f"FE verification {fe_st.done} runs of the candidates and "
+                   f"{ref_st.done} refinement runs (after one compile of the scene) in "
+                   f"{timing['fe']:.1f} s")
+        robust = {}
+        n_ok = sum(f.feasible for _, f in pairs)
+        if d.members and n_ok:
+            t2 = time.perf_counter()
+            with Stage("FE Monte-Carlo", d.members * n_ok, show) as mc:
+                robust = vf.verify_members(d, client, pairs, out, mc, warmed)
+            with Stage("FE robust refinement", None, show) as rr:
+                rounds = vf.robust_refine(d, client, pairs, robust, points, out, rr, warmed)
+            timing["members"] = time.perf_counter() - t2
+            ran.append(f"FE Monte-Carlo {mc.done} members of {n_ok} FE-passing point(s)"
+                       + (f", robust refinement {rounds} step(s) ({rr.done} runs)"
+                          if rounds else "") + f" in {timing['members']:.1f} s")
     timing["total"] = time.perf_counter() - t0
-    chosen = ch.choose(pairs)
-    paths = ch.write_design(d, points, pairs, chosen, out, timing)
-    _print_table(*ch.pair_table(d, pairs))
-    print(f"timing: search {t_search:.1f} s, FE {timing['fe']:.1f} s, total "
-          f"{timing['total']:.1f} s")
+    chosen, rec, met = vf.choose(pairs, robust, d.pass_rate)
+    info.update(robust=robust, chosen_robust=rec, rate_met=met)
+    paths = outputs.write_design(d, points, pairs, chosen, out, info)
+    _print_table(*outputs.pair_table(d, pairs))
+    print("stages: " + "; ".join(ran) + f"; total {timing['total']:.1f} s")
     if chosen is None:
-        raise RunError("no FE-verified design: the FE rejected every candidate and "
-                       f"{d.refine} refinement step(s) (see {paths['csv']}); the analytical "
+        n_ref = sum(1 for a, _ in pairs if a.note.startswith("refinement"))
+        raise RunError(f"no FE-verified design: the FE rejected the {len(cands)} candidate(s) "
+                       f"and {n_ref} refinement run(s) (see {paths['csv']}); the analytical "
                        "model and the FE disagree here")
     a, f = chosen
-    print("design: " + ", ".join(f"{k} = {v:.6g}" for k, v in a.values.items())
-          + f"; {d.minimise}: analytic {a.objective:.5g}, FE {f.objective:.5g}")
-    print(f"wrote {paths['toml']} (spinweb run it), {paths['csv']}, {paths['json']}, "
-          f"{paths['png']}; FE result {f.run_dir}")
+    line = ("design: " + ", ".join(f"{k} = {v:.6g}" for k, v in a.values.items())
+            + f"; {d.minimise}: analytic {a.objective:.5g}, FE {f.objective:.5g}")
+    if rec is not None:
+        line += (f"; {rec['passes']} of {rec['members']} Monte-Carlo members pass (95 % "
+                 f"interval {100 * rec['low']:.0f} .. {100 * rec['high']:.0f} %)")
+        if d.pass_rate is not None:
+            line += ("; the required pass rate {:.0%} is met".format(d.pass_rate) if met else
+                     "; NOT ROBUST ENOUGH: no verified point's interval reaches the required "
+                     "{:.0%}, this is the most robust".format(d.pass_rate))
+    print(line)
+    print(f"wrote {paths['toml']} (spinweb run it: its [verdict] requires what it was "
+          f"verified for), " + (f"{paths['check']} (spinweb sweep it: its members), "
+                                if "check" in paths else "")
+          + f"{paths['csv']}, {paths['json']}, {paths['png']}; FE result {f.run_dir}")
     return 0
+
+
+def _where(args) -> str:
+    return args.scheduler or f"{args.workers} local worker(s)"
 
 
 def _chart(args, out, check_writable) -> int:
     from spinweb_fe.sweep import chart as ch
+    from spinweb_fe.sweep import outputs
 
     d = ch.load_chart(args.design)
     if args.no_fe:
@@ -160,12 +201,14 @@ def _chart(args, out, check_writable) -> int:
         d = dataclasses.replace(d, chart_fe=())
     check_writable(out)
     t0 = time.perf_counter()
+    from spinweb_fe.run.progress import enabled
+
     with _claim(out, "design"):
         with _client(args, d) as client:
-            rows = ch.run_chart(d, client, out)
-        paths = ch.write_chart(d, rows, out)
-    cols = [d.chart_key, f"least {d.keys[0]}", *ch.CHART_COLS[2:]]
-    _print_table(cols, ch.chart_table(d, rows))
+            rows = ch.run_chart(d, client, out, enabled(not args.no_progress))
+        paths = outputs.write_chart(d, rows, out)
+    cols = [d.chart_key, f"least {d.keys[0]}", *outputs.CHART_COLS[2:]]
+    _print_table(cols, outputs.chart_table(d, rows))
     n = sum(math.isfinite(r["least"]) for r in rows)
     print(f"{n} of {len(rows)} chart values have a passing {d.keys[0]} in "
           f"{list(d.search[d.keys[0]])}; {time.perf_counter() - t0:.1f} s; wrote "

@@ -5,7 +5,10 @@ from pathlib import Path
 
 def add_parser(sub):
     p = sub.add_parser("info", help="summary of a result file", description=__doc__)
-    p.add_argument("result", help="results.h5 or analytic.h5")
+    p.add_argument("result", nargs="?", help="results.h5 or analytic.h5")
+    p.add_argument("--criteria", action="store_true",
+                   help="list the verdict criteria and the run metrics (their registries: "
+                        "what each measures, its unit, limit key and default)")
     return p
 
 
@@ -142,6 +145,26 @@ def _live(path, h) -> str:
     return (f"interrupted: no process is running it any more (killed {when}?); {again}")
 
 
+def registries() -> list:
+    """Lines of ``--criteria``: the criteria and metrics registries."""
+    from spinweb_fe.record import criteria, metrics
+
+    out = criteria.listing() + ["", "metrics (record/metrics.py; sweep column, design use):"]
+    for m in metrics.METRICS.values():
+        use = "/".join(x for x, ok in (("objective", m.objective), ("bound", m.bound)) if ok)
+        out.append(f"  {m.name:<15} {m.column:<22} [{m.unit}] {use or 'sweep only'}: "
+                   f"{m.measures}")
+    return out
+
+
 def run(args) -> int:
+    from spinweb_fe.errors import InputError
+
+    if args.criteria:
+        print("\n".join(registries()))
+        if args.result is None:
+            return 0
+    elif args.result is None:
+        raise InputError("RESULT", "", "missing: the result file (or --criteria)")
     print(summary(args.result))
     return 0

@@ -70,12 +70,13 @@ def run(args) -> int:
     if (info := holder(out, SWEEP_LOCK)) is not None:  # one sweep per folder
         raise busy(out, info, "sweep or design")
     with FolderLock(out, SWEEP_LOCK, "sweep"):
-        rows = sw.execute(spec, out, scheduler=args.scheduler, workers=args.workers,
+        from spinweb_fe.sweep.cluster import execute
+
+        rows = execute(spec, out, scheduler=args.scheduler, workers=args.workers,
                           progress=not args.no_progress)
         paths = sweep_report.write_summary(spec, rows, out)
     cols, data = sweep_report.table(spec, rows)
-    shown = ["name", "deploy_time_s", "peak_hub_torque_Nm", "final_hub_omega_rad_s",
-             "max_tension_N", "passed", "failed", "wall_time_s", "status"]
+    shown = ["name", *sw.PLOTTED, "passed", "failed", "wall_time_s", "status"]
     idx = [cols.index(c) for c in shown]
     lines = [[c for c in shown]] + [[_fmt(r[j]) for j in idx] for r in data]
     widths = [max(len(line[j]) for line in lines) for j in range(len(shown) - 1)]

@@ -411,10 +411,16 @@ def _draw(result, out, suffix, frame, time, fps, size, renderer, camera) -> dict
             radius = view_radius(scene, frames)
         canvas, img = _open_canvas(renderer, scene, size, clim, radius, frames[0], camera,
                                    box)
+        from spinweb_fe.run.progress import Stage, enabled
+
         try:
             writer.append(img)
-            for k in frames[1:]:
-                writer.append(canvas.draw(k))
+            with Stage(f"render {out.name}", len(frames), enabled() and len(frames) > 1,
+                       unit="frame") as bar:
+                bar.update()
+                for k in frames[1:]:
+                    writer.append(canvas.draw(k))
+                    bar.update()
             what = canvas.describe()
         finally:
             canvas.close()

@@ -67,6 +67,10 @@ def summary_lines(h5) -> list[str]:
     k = int(np.argmax(u))
     eps_f = failure_strain_of(h5)
     head = f"failure strain {eps_f:.4g}; " if eps_f is not None else ""
+    if "max_strain_element" not in hist:  # the analytical tethers: their root tension
+        return [f"strength: {head}worst utilisation {u[k]:.3g} (strain "
+                f"{hist['max_strain'][k]:.4g}, the arm's root tension over E A) at "
+                f"t = {t[k]:.6g} s"]
     elem = int(hist["max_strain_element"][k])
     lines = [f"strength: {head}worst utilisation {u[k]:.3g} (strain "
              f"{hist['max_strain'][k]:.4g}) at t = {t[k]:.6g} s, {where(h5, elem)}"]

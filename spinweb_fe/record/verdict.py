@@ -1,62 +1,36 @@
-"""Verdicts: does a run deploy? Each criterion of the ``[verdict]`` table judged from a
-run's history (FE or analytical: the same columns), with the time and arm where it first
-failed; written into a result file as root attributes and a ``/verdict`` group, read back
-by ``spinweb info``, the sweeps and ``spinweb design`` (docs/design.md).
+"""Verdicts: does a run deploy? Each criterion of the registry
+(:mod:`spinweb_fe.record.criteria`: what it measures, its ``[verdict]`` limit and default,
+where it applies) judged from a run's history (FE or analytical: the same columns), with
+the time and arm where it first failed; written into a result file as root attributes and
+a ``/verdict`` group, read back by ``spinweb info``, the sweeps and ``spinweb design``
+(docs/design.md). A criterion that does not apply to a run is reported as such, never
+passed; the overall verdict asks the required ones (``[verdict] require``) to pass.
 
-Criteria (a criterion that does not apply to a run is reported as such, never passed):
-
-- ``completed``: the run reached time.end (FE: status; analytical: not stopped);
-- ``deployed``: every tip at least ``deployed_fraction`` of its deployed distance from the
-  hub axis (by ``deploy_by`` if given), and staying there to the end (a distance, not the
-  arm-length measure of record.arms: a quad web's cells shear, its corners breathe
-  radially about the flat web's place, and an arm still wound on the hub is short);
-- ``recoil``: no tip falls back toward the hub from its farthest by more than ``recoil``
-  of its arm's deployed length (an arm wound back on the hub brings its tip in);
-- ``slack``: at most ``slack_share`` of the cable elements without tension at the end
-  (FE);
-- ``overstrain``: no element beyond its failure strain (FE, with cable.failure_strain);
-- ``swing``: the residual in-plane swing of every arm, half the range of phi over the
-  second half of the time after deployment, within ``swing`` [rad];
-- ``flatness``: the web's largest distance from the hub plane at the end within
-  ``flatness`` of its deployed arm length (FE runs that can leave the plane);
-- ``energy``: the energy balance closed within ``energy`` of the run's energy scale;
-- ``momentum``: the angular momentum about the spin axis equal to its start plus the
-  control torque's impulse within ``momentum`` of its scale (not with the gravity
-  gradient, whose torque is not recorded).
+Distances, not the arm-length measure of record.arms, say whether an arm is out: a quad
+web's cells shear, its corners breathe radially about the flat web's place, and an arm
+still wound on the hub is short.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from spinweb_fe.record import criteria as criteria_mod
 from spinweb_fe.record.energy import balance_error
 
-#: criterion name -> what it judges (the order of the report)
-CRITERIA = {
-    "completed": "the run reached its end time",
-    "deployed": "every arm at its deployed length, and staying there",
-    "recoil": "no tip fell back toward the hub (re-coil)",
-    "slack": "share of the cable elements without tension at the end",
-    "overstrain": "no element beyond its failure strain",
-    "swing": "in-plane swing of the arms after deployment",
-    "flatness": "out-of-plane distance of the web at the end",
-    "energy": "energy balance of the run",
-    "momentum": "angular momentum balance about the spin axis",
-    "tangled": "cable elements that passed through each other (the crossing audit)",
-}
-#: the [verdict] table's defaults (the case schema takes them from here)
-DEFAULTS = {"deployed_fraction": 0.8, "deploy_by": None, "recoil": 0.5, "slack_share": 0.75,
-            "swing": 0.3, "flatness": 0.05, "energy": 0.02, "momentum": 0.01,
-            "crossings": 0}
+#: the criteria and the [verdict] table's defaults: the registry (record/criteria.py)
+CRITERIA, DEFAULTS = criteria_mod.CRITERIA, criteria_mod.DEFAULTS
 
 
 @dataclass(frozen=True)
 class Criterion:
     """One criterion's judgement: ``passed`` None where it does not apply (``detail``
-    says why); ``time`` [s] and ``arm`` where it first failed (NaN, -1 otherwise)."""
+    says why); ``time`` [s] and ``arm`` where it first failed (NaN, -1 otherwise);
+    ``required``: the overall verdict asks it to pass (``[verdict] require``)."""
 
     name: str
     passed: bool | None
@@ -66,10 +40,13 @@ class Criterion:
     time: float = math.nan
     arm: int = -1
     detail: str = ""
+    required: bool = True
 
     def line(self) -> str:
         """One line for ``spinweb info``."""
         mark = {True: "pass", False: "FAIL", None: "n/a "}[self.passed]
+        if self.passed is False and not self.required:
+            mark = "fail"  # not asked for by the overall verdict
         text = f"  {mark}  {self.name:<10} "
         if self.passed is None:
             return text + self.detail
@@ -274,20 +251,25 @@ def floors_of(attrs) -> dict:
 
 def case_terms(case: dict) -> dict:
     """:func:`judge`'s keyword arguments that a case decides, from its resolved dict
-    (Case.to_dict(), or a result file's ``case`` attribute): the [verdict] thresholds, the
-    failure strain, the gravity gradient, whether the law prescribes the hub rate."""
+    (Case.to_dict(), or a result file's ``case`` attribute): the [verdict] thresholds and
+    required criteria, the failure strain, the gravity gradient, whether the law prescribes
+    the hub rate, the end time."""
     from spinweb_fe.fe.control import LAWS
 
-    return {"limits": limits_of(case.get("verdict")),
+    table = case.get("verdict") or {}
+    return {"limits": limits_of(table),
+            "require": criteria_mod.required(table.get("require")),
             "failure_strain": case.get("cable", {}).get("failure_strain"),
             "gravity": bool(case.get("environment", {}).get("gravity_gradient")),
-            "prescribed": LAWS[case.get("control", {}).get("law", "free")].prescribes_rate}
+            "prescribed": LAWS[case.get("control", {}).get("law", "free")].prescribes_rate,
+            "t_end": case.get("time", {}).get("end")}
 
 
 def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "completed",
           slack_share: float | None = None, failure_strain: float | None = None,
           out_of_plane: bool = False, gravity: bool = False, prescribed: bool = False,
-          energy_floor: float = 0.0, momentum_floor: float = 0.0) -> list:
+          t_end: float | None = None, require=None, energy_floor: float = 0.0,
+          momentum_floor: float = 0.0) -> list:
     """The criteria of one run (see the module's doc).
 
     Parameters
@@ -315,6 +297,10 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
         The gravity gradient acts (its torque is not recorded: no momentum audit).
     prescribed : bool
         The control law prescribes the hub rate (its torque is a reaction).
+    t_end : float or None [s]
+        The run's end time: a run that stopped early has completed t[-1] / t_end of it.
+    require : sequence of str or None
+        The criteria the overall verdict asks to pass (default: record.criteria.REQUIRED).
     energy_floor, momentum_floor : float [J], [N m s]
         The least scales of the energy and momentum audits (record.energy.energy_floor;
         :func:`floors_of` a result file): a scene at rest is judged against them.
@@ -324,7 +310,9 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
     phi = np.asarray(h["arm_angle"], dtype=float).reshape(len(t), -1)
     reach = np.broadcast_to(np.asarray(reach, dtype=float), (phi.shape[1],)).copy()
     full = reach - hub_radius  # the arm's deployed length from the rim
-    out = [Criterion("completed", status == "completed", 1.0 if status == "completed" else 0.0,
+    done = 1.0 if status == "completed" else (
+        min(float(t[-1]) / t_end, 1.0 - 1e-12) if t_end else 0.0)
+    out = [Criterion("completed", status == "completed", done,
                      1.0, time=math.nan if status == "completed" else float(t[-1]),
                      detail="" if status == "completed" else status)]
     radius = tip_radius(h, hub_radius)
@@ -362,7 +350,8 @@ def judge(h: dict, reach, hub_radius: float, limits=None, *, status: str = "comp
         out.append(Criterion("momentum", m <= lim["momentum"], m, lim["momentum"],
                              time=math.nan if m <= lim["momentum"] else float(t[-1])))
     out.append(_tangled(t, h, lim))
-    return out
+    need = set(criteria_mod.required(require))
+    return [dataclasses.replace(c, required=c.name in need) for c in out]
 
 
 def _tangled(t, h, lim) -> Criterion:
@@ -377,8 +366,8 @@ def _tangled(t, h, lim) -> Criterion:
 
 
 def passed(criteria) -> bool:
-    """Every criterion that applies passed."""
-    return all(c.passed is not False for c in criteria)
+    """Every required criterion that applies passed."""
+    return all(c.passed is not False for c in criteria if c.required)
 
 
 def severity(criteria) -> float:
@@ -388,7 +377,7 @@ def severity(criteria) -> float:
     complete. Ranks the members of a Monte-Carlo sweep (the worst is the largest)."""
     worst = 0.0
     for c in criteria:
-        if c.passed is None:
+        if c.passed is None or not c.required:
             continue
         if c.name == "completed":
             r = 0.0 if c.passed else math.inf
@@ -401,7 +390,8 @@ def severity(criteria) -> float:
 
 
 def failed_names(criteria) -> list:
-    return [c.name for c in criteria if c.passed is False]
+    """The required criteria that failed."""
+    return [c.name for c in criteria if c.passed is False and c.required]
 
 
 def write_group(h5, criteria):
@@ -422,7 +412,8 @@ def write_group(h5, criteria):
         s.attrs["time_units"] = "s"
         s.attrs["arm"] = c.arm
         s.attrs["detail"] = c.detail
-        s.attrs["description"] = CRITERIA[c.name]
+        s.attrs["description"] = CRITERIA[c.name].measures
+        s.attrs["required"] = int(c.required)
     h5.attrs["verdict"] = "pass" if passed(criteria) else "fail"
     h5.attrs["verdict_failed"] = ",".join(failed_names(criteria))
 
@@ -440,13 +431,15 @@ def read_group(h5) -> list | None:
         p = int(a["passed"])
         out.append(Criterion(name, None if p < 0 else bool(p), float(a["value"]),
                              float(a["limit"]), str(a["units"]), float(a["time"]),
-                             int(a["arm"]), str(a["detail"])))
+                             int(a["arm"]), str(a["detail"]), bool(a.get("required", 1))))
     return out
 
 
 def report(criteria) -> list:
     """Lines of a verdict: the overall one, then one per criterion."""
     bad = failed_names(criteria)
-    head = "verdict: deploys (every criterion that applies passed)" if not bad else \
-        f"verdict: FAILS ({', '.join(bad)})"
+    skip = [c.name for c in criteria if not c.required]
+    head = ("verdict: deploys (every required criterion that applies passed)" if not bad
+            else f"verdict: FAILS ({', '.join(bad)})") + (
+        f"; not required: {', '.join(skip)}" if skip else "")
     return [head] + [c.line() for c in criteria]

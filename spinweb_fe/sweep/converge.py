@@ -275,7 +275,8 @@ def execute(p: Plan, out_dir, scheduler=None, workers=2, progress=True) -> list:
     (dt [s], steps, elements), ``status``, ``wall_time_s``."""
     from dask.distributed import as_completed
 
-    from spinweb_fe.sweep.run import dask_client, one_line
+    from spinweb_fe.sweep.cluster import dask_client
+    from spinweb_fe.sweep.run import one_line
 
     out_dir = Path(out_dir).resolve()
     rows = [None] * len(p.members)

@@ -1,121 +1,34 @@
-"""Deployment design: search a control law's parameters on the consistent analytical model
-(docs/design.md, "Design search"); the FE verification, the chart and the outputs are in
-:mod:`spinweb_fe.sweep.chart`.
+"""Deployment design: judging a point and the search on the consistent analytical model
+(docs/design.md, "Design search"); the design file is :mod:`spinweb_fe.sweep.designfile`,
+the FE verification :mod:`spinweb_fe.sweep.verify`, the outputs
+:mod:`spinweb_fe.sweep.outputs`.
 
-A design file (TOML; keys in TOP_KEYS): ``base`` (the case, relative to the design file),
-``law`` (optional control.law), ``minimise`` (OBJECTIVES), ``require`` (criteria of
-record.verdict that must pass; default all), ``[search]`` (``"control.M0" = [low, high]``),
-``[set]`` (fixed keys), ``[tie]`` (``"control.omega0" = "initial.omega"`` or ``{key = ...,
-factor = f}``), ``[bounds]`` (upper limits, BOUNDS), ``[fe]`` (overrides of the FE runs
-only), ``[chart]`` (one key and its values). A point is feasible when every required
-criterion that applies passed and every bound holds; its *margin* (the least relative
-margin of those, negative when it fails) is what the search sees of a failure.
+A point is feasible when every required criterion that applies passed and every bound
+holds; its *margin* (the least relative margin of those, negative when it fails) is what
+the search sees of a failure.
 """
 
 from __future__ import annotations
 
-import difflib
 import itertools
 import logging
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from spinweb_fe.errors import InputError
-from spinweb_fe.fe.control import LAWS
+from spinweb_fe.record import criteria as criteria_reg
+from spinweb_fe.record import metrics as metric_reg
 from spinweb_fe.record import verdict
-from spinweb_fe.record.verdict import CRITERIA
-from spinweb_fe.case.text import base_path, show
-from spinweb_fe.sweep.run import _read_toml, apply, flatten
+from spinweb_fe.record.metrics import BOUNDS, METRICS, OBJECTIVES  # noqa: F401  (the registry)
+from spinweb_fe.sweep.designfile import (Design, _num, build_case, case_raw,  # noqa: F401
+                                         check_cases, load_design)
 
 log = logging.getLogger(__name__)
 
-TOP_KEYS = ("title", "base", "law", "minimise", "require", "candidates", "refine",
-            "refine_step", "scan", "rtol", "maxiter", "search", "set", "tie", "bounds", "fe",
-            "chart")
-#: metric of a judged point -> (units, what it is); FE and analytic alike
-METRICS = {
-    "deploy_time": ("s", "the verdict's deployment time: every tip at deployed_fraction of "
-                         "its deployed distance from the axis, staying there"),
-    "peak_torque": ("N m", "largest |hub torque|"),
-    "peak_power": ("W", "largest |hub torque x hub rate|"),
-    "swing": ("rad", "in-plane swing of the arms after deployment"),
-    "max_tension": ("N", "largest arm (analytic) or cable (FE) tension"),
-    "brake_force": ("N", "largest line tension at the payout device (reel or brake)"),
-}
-#: objective -> (units, what is minimised)
-OBJECTIVES = {**METRICS,
-              "parameter": ("", "the searched value itself (one searched key): the least M0")}
-#: bound -> (units, what is limited from above)
-BOUNDS = {**{k: METRICS[k] for k in ("peak_torque", "peak_power", "brake_force",
-                                     "deploy_time", "max_tension")},
-          "strength": ("1", "true: no overstrain (utilisation <= 1; needs "
-                            "cable.failure_strain)")}
 BIG = 1e30  # the penalised score of an infeasible point: BIG (1 + its violation)
-
-
-@dataclass(frozen=True)
-class Design:
-    """A validated design file (see the module's doc); ``search``: key -> (low, high)."""
-
-    source: Path
-    text: str
-    title: str
-    base: Path
-    base_raw: dict
-    law: str | None
-    search: dict
-    sets: dict
-    ties: dict              # key -> (source key, factor)
-    fe_sets: dict
-    bounds: dict            # name -> upper limit (strength: 1.0)
-    minimise: str | None
-    require: tuple | None   # None: every criterion
-    candidates: int = 2
-    refine: int = 4
-    refine_step: float = 0.05
-    scan: int = 17
-    rtol: float = 1e-3
-    maxiter: int = 12
-    chart_key: str | None = None
-    chart_values: tuple = ()
-    chart_fe: tuple = ()
-    chart_factor: float = 1.25
-
-    @property
-    def keys(self) -> tuple:
-        return tuple(self.search)
-
-    def is_log(self, key) -> bool:
-        """Searched on a log scale: a positive range of a decade or more."""
-        lo, hi = self.search[key]
-        return lo > 0 and hi / lo >= 10.0
-
-    def to_unit(self, values: dict) -> np.ndarray:
-        """Searched values -> [0, 1] per key (log or linear)."""
-        out = []
-        for k in self.keys:
-            lo, hi = self.search[k]
-            x = values[k]
-            out.append(math.log(x / lo) / math.log(hi / lo) if self.is_log(k)
-                       else (x - lo) / (hi - lo))
-        return np.array(out)
-
-    def from_unit(self, u) -> dict:
-        out = {}
-        for k, v in zip(self.keys, np.clip(np.atleast_1d(u), 0.0, 1.0)):
-            lo, hi = self.search[k]
-            out[k] = float(lo * (hi / lo) ** v if self.is_log(k) else lo + v * (hi - lo))
-        return out
-
-    def unit_tol(self, key) -> float:
-        """The bisection's resolution in unit coordinates: rtol of the value (log keys) or
-        of the range."""
-        lo, hi = self.search[key]
-        return math.log1p(self.rtol) / math.log(hi / lo) if self.is_log(key) else self.rtol
 
 
 @dataclass
@@ -147,215 +60,16 @@ class Point:
         return "pass" if self.feasible else "FAIL " + ",".join(self.failed)
 
 
-def _num(src, key, v) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise InputError(src, key, f"must be a finite number, got {show(v)}")
-    return float(v)
-
-
-def _ties(src, table) -> dict:
-    """[tie]: ``key = "other.key"`` or ``key = {key = "other.key", factor = f}``."""
-    out = {}
-
-    def walk(node, prefix):
-        for k, v in node.items():
-            dotted = prefix + k
-            if isinstance(v, dict) and "key" not in v:
-                walk(v, dotted + ".")
-            elif isinstance(v, str):
-                out[dotted] = (v, 1.0)
-            elif isinstance(v, dict) and isinstance(v["key"], str) and set(v) <= {"key",
-                                                                                  "factor"}:
-                out[dotted] = (v["key"], _num(src, f"tie.{dotted}.factor", v.get("factor", 1.0)))
-            else:
-                raise InputError(src, f"tie.{dotted}", "must be a key name or "
-                                 "{key = \"table.key\", factor = number}")
-    walk(table, "")
-    return out
-
-
-def _options(src, doc):
-    def integer(name, default, lo, hi):
-        v = doc.get(name, default)
-        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise InputError(src, name, f"must be an integer in [{lo}, {hi}], got {v!r}")
-        return v
-
-    def real(name, default, lo, hi):
-        v = _num(src, name, doc.get(name, default))
-        if not lo < v < hi:
-            raise InputError(src, name, f"must be in ({lo:g}, {hi:g}), got {v!r}")
-        return v
-    return dict(candidates=integer("candidates", 2, 1, 3), refine=integer("refine", 4, 0, 10),
-                refine_step=real("refine_step", 0.05, 0.0, 1.0), scan=integer("scan", 17, 3, 400),
-                rtol=real("rtol", 1e-3, 0.0, 0.5), maxiter=integer("maxiter", 12, 1, 1000))
-
-
-def _choice(src, key, v, valid, what):
-    """``v`` if it is one of ``valid``, else InputError naming the nearest."""
-    if isinstance(v, str) and v in valid:
-        return v
-    near = difflib.get_close_matches(str(v), list(valid), n=1, cutoff=0.5)
-    raise InputError(src, key, f"unknown {what} {show(v)}" + (
-        f" (did you mean '{near[0]}'?)" if near else f" (valid: {', '.join(valid)})"))
-
-
-def _search(src, table, law):
-    """[search]: key -> (low, high); a control key must be one of the law's."""
-    out = {}
-    for k, v in flatten(table).items():
-        if not (isinstance(v, list) and len(v) == 2):
-            raise InputError(src, f"search.{k}", f"must be [low, high], got {v!r}")
-        lo, hi = _num(src, f"search.{k}", v[0]), _num(src, f"search.{k}", v[1])
-        if not lo < hi:
-            raise InputError(src, f"search.{k}", f"must be [low, high] with low < high, got {v!r}")
-        have = [p.name for p in LAWS[law].keys]
-        if k.startswith("control.") and k[8:] not in have:
-            raise InputError(src, f"search.{k}", f"law {law!r} has no key {k[8:]!r} (its "
-                             f"keys: {', '.join(have) or 'none'})")
-        out[k] = (lo, hi)
-    if not out:
-        raise InputError(src, "search", "missing: a design searches at least one key, "
-                         "e.g. [search] \"control.M0\" = [1e4, 1e7]")
-    return out
-
-
-def _bounds(src, table):
-    out = {}
-    for k, v in table.items():
-        _choice(src, f"bounds.{k}", k, BOUNDS, "bound")
-        if k == "strength":
-            if not isinstance(v, bool):
-                raise InputError(src, "bounds.strength", f"must be true or false, got {v!r}")
-            out.update({k: 1.0} if v else {})
-        elif _num(src, f"bounds.{k}", v) > 0:
-            out[k] = float(v)
-        else:
-            raise InputError(src, f"bounds.{k}", f"must be > 0 ({BOUNDS[k][0]}), got {v!r}")
-    return out
-
-
-def load_design(path, chart: bool = False) -> Design:
-    """Read and validate a design file (the cases at the corners of the search, and at
-    every chart value, are built and validated too).
-
-    Raises
-    ------
-    InputError
-        Unknown keys, no searched key, a search range not [low, high] with low < high, a
-        control key the law does not have, no [bounds] or no objective (a design; a
-        ``chart`` needs neither), an unknown objective, bound or criterion, no [chart]
-        table (``chart``), or a case that does not validate.
-    """
-    src = Path(path)
-    doc = _read_toml(src, "design file")
-    for key in doc:
-        _choice(src, key, key, TOP_KEYS, "key")
-    base = base_path(src, doc, "design")
-    base_raw = _read_toml(base, "base case")
-    for name in ("search", "set", "tie", "bounds", "fe", "chart"):
-        if not isinstance(doc.get(name, {}), dict):
-            raise InputError(src, name, f"must be a table [{name}]")
-    law = doc.get("law")
-    _choice(src, "law", law if law is not None else base_raw.get("control", {}).get(
-        "law", "free"), LAWS, "control law")
-    search = _search(src, doc.get("search", {}), law or base_raw.get("control", {}).get(
-        "law", "free"))
-    sets, ties, fe_sets = (flatten(doc.get("set", {})), _ties(src, doc.get("tie", {})),
-                           flatten(doc.get("fe", {})))
-    for k in [*ties, *fe_sets, *search]:  # [fe] may override [set] for the FE runs
-        if (k in search) + (k in sets) + (k in ties) > 1 or k in fe_sets and (
-                k in search or k in ties):
-            where = "tie" if k in ties else "fe" if k in fe_sets else "set"
-            raise InputError(src, f"{where}.{k}", "given in more than one of [search], [set], "
-                             "[tie] (or searched or tied and in [fe]): give it in one place")
-    bounds = _bounds(src, doc.get("bounds", {}))
-    minimise = doc.get("minimise")
-    if minimise is not None:
-        _choice(src, "minimise", minimise, OBJECTIVES, "objective")
-    if minimise == "parameter" and len(search) != 1:
-        raise InputError(src, "minimise", "'parameter' needs exactly one searched key")
-    if not chart and minimise is None:
-        raise InputError(src, "minimise", f"missing: the objective (valid: {', '.join(OBJECTIVES)})")
-    if not chart and not bounds:
-        raise InputError(src, "bounds", "missing: a design needs at least one bound in "
-                         f"[bounds] (valid: {', '.join(BOUNDS)})")
-    require = doc.get("require")
-    if require is not None:
-        if not isinstance(require, list) or not require:
-            raise InputError(src, "require", "must be a non-empty list of criteria")
-        require = tuple(_choice(src, "require", c, CRITERIA, "criterion") for c in require)
-    d = Design(src, src.read_text(encoding="utf-8"), str(doc.get("title", "")), base, base_raw,
-               law, search, sets, ties, fe_sets, bounds, minimise, require, **_options(src, doc))
-    if not chart:  # a chart checks its cases with its values (sweep.chart.load_chart)
-        check_cases(d)
-    return d
-
-
-def _lookup(raw, dotted):
-    node = raw
-    for p in dotted.split("."):
-        if not isinstance(node, dict) or p not in node:
-            return None
-        node = node[p]
-    return node
-
-
-def case_raw(d: Design, values: dict, extra: dict | None = None, fe: bool = False) -> dict:
-    """The case dict of a point: base, [set], law, the searched (and chart) ``values``,
-    [fe] for an FE run, then the [tie] keys."""
-    over = {**d.sets, **({"control.law": d.law} if d.law else {}), **values, **(extra or {})}
-    if fe:
-        over.update(d.fe_sets)
-    raw = apply(d.base_raw, over, d.source, "design")
-    if d.law:  # the base's keys of another law go
-        keep = {"law", *(p.name for p in LAWS[d.law].keys)}
-        raw["control"] = {k: v for k, v in raw["control"].items() if k in keep}
-    ties = {}
-    for k, (other, factor) in d.ties.items():
-        v = _lookup(raw, other)
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise InputError(d.source, f"tie.{k}", f"{other} is not a number of the case "
-                             f"(got {v!r})")
-        ties[k] = factor * float(v)
-    return apply(raw, ties, d.source, "tie")
-
-
-def build_case(d: Design, values: dict, extra=None, fe=False):
-    from spinweb_fe.case.load import validate
-
-    try:
-        return validate(case_raw(d, values, extra, fe), str(d.base))
-    except InputError as exc:
-        if exc.source == str(d.source):
-            raise
-        raise InputError(d.source, exc.key, exc.reason) from None
-
-
-def check_cases(d: Design):
-    """Build and validate the cases at the search's corners (and chart values)."""
-    corners = [{k: v[i] for k, v in d.search.items()} for i in (0, 1)]
-    extras = [{d.chart_key: v} for v in d.chart_values] or [None]
-    for values in corners:
-        for extra in extras:
-            case = build_case(d, values, extra)
-            build_case(d, values, extra, fe=True)
-            if "strength" in d.bounds and case.cable.failure_strain is None:
-                raise InputError(d.source, "bounds.strength", "needs cable.failure_strain "
-                                 "in the case (base or [set])")
-            if "brake_force" in d.bounds and case.stowage.payout not in ("rate", "brake"):
-                raise InputError(d.source, "bounds.brake_force", "the case has no payout "
-                                 "device (stowage.payout = 'rate' or 'brake')")
-
-
 # -- judging a point ----------------------------------------------------------------------
 
 def _margin(c) -> float:
     """A criterion's relative margin (>= 0 passed; infinite: passed, no number): a run that
-    did not complete -1, 'deployed' (a share, larger is better) value/limit - 1, every
-    other (and deploy_by) 1 - value/limit."""
-    if c.name == "completed" or not (math.isfinite(c.value) and math.isfinite(c.limit)
-                                     and c.limit > 0):
+    stopped early, the share of it not done (the analytical model leaving its validity is
+    a failure, the later the closer), 'deployed' (a share, larger is better) value/limit -
+    1, every other (and deploy_by) 1 - value/limit."""
+    if c.name == "completed":
+        m = math.inf if c.passed else (c.value - 1.0 if math.isfinite(c.value) else -1.0)
+    elif not (math.isfinite(c.value) and math.isfinite(c.limit) and c.limit > 0):
         m = math.inf if c.passed else -1.0
     elif c.name == "deployed" and c.units == "1":
         m = c.value / c.limit - 1.0
@@ -366,30 +80,19 @@ def _margin(c) -> float:
 
 def metrics_of(h: dict, crits, reach, hub_radius: float, fraction: float,
                ea_fail=None) -> dict:
-    """Design metrics of a run's history (FE or analytic) and verdict; ``reach`` (n,) [m]
-    the tips' deployed distances from the axis, ``fraction`` the verdict's deployed share
-    (the deployment time is the verdict's: out for good from then on)."""
-    by = {c.name: c for c in crits}
-    t = np.asarray(h["time"], float)
-    M, w = np.asarray(h["hub_torque"], float), np.asarray(h["hub_omega"], float)
-    dep = verdict.deploy_time(t, verdict.tip_radius(h, hub_radius), reach, fraction)
-    tension = float(np.max(h["max_tension"]))
-    sw, ov = by.get("swing"), by.get("overstrain")
-    util = ov.value if ov is not None and ov.passed is not None else (
-        tension / ea_fail if ea_fail else math.nan)
-    return {"deploy_time": dep if math.isfinite(dep) else math.inf,
-            "peak_torque": float(np.max(np.abs(M))), "peak_power": float(np.max(np.abs(M * w))),
-            "brake_force": float(np.max(h["brake_tension"])) if "brake_tension" in h else math.nan,
-            "max_tension": tension,
-            "swing": sw.value if sw is not None and sw.passed is not None else math.nan,
-            "strength": util}
+    """Design metrics of a run's history (FE or analytic) and verdict: the registry's
+    (record.metrics.compute)."""
+    return metric_reg.compute(h, crits, reach, hub_radius, fraction, ea_fail)
 
 
 def judge_point(d: Design, values, model, crits, metrics, **kw) -> Point:
     """Feasibility, margin, objective and failures of a point from its criteria and
     metrics (see the module's doc)."""
-    need = d.require or tuple(CRITERIA)
+    need = criteria_reg.required(d.require)
     margins, failed = [], []
+    dep = next((c for c in crits if c.name == "deployed" and c.units == "1"), None)
+    if dep is not None:
+        metrics = {**metrics, "deploy_share": dep.value}  # tips' least share of their reach
     for c in crits:
         if c.name in need and c.passed is not None:
             margins.append(_margin(c))
@@ -439,18 +142,40 @@ def evaluate(d: Design, values: dict, extra: dict | None = None) -> Point:
 
 class Evaluator:
     """Memoised :func:`evaluate` (the bisection and Brent revisit points); ``points`` in
-    the order evaluated."""
+    the order evaluated. With a Dask ``client`` :meth:`many` solves its points in parallel
+    on the workers; ``stage`` (run.progress.Stage) counts the solves; ``counts`` per
+    ``phase`` (scan, bisection, Brent, differential evolution) for the final message."""
 
-    def __init__(self, d: Design, extra=None):
-        self.d, self.extra, self.points, self._seen = d, extra, [], {}
+    def __init__(self, d: Design, extra=None, client=None, stage=None):
+        self.d, self.extra, self.client, self.stage = d, extra, client, stage
+        self.points, self._seen, self.counts, self.phase = [], {}, {}, "search"
+
+    def _key(self, values):
+        return tuple(round(float(values[k]), 12) for k in self.d.keys)
+
+    def _add(self, key, p):
+        self._seen[key] = p
+        self.points.append(p)
+        self.counts[self.phase] = self.counts.get(self.phase, 0) + 1
+        if self.stage is not None:
+            self.stage.update(note=f"{self.phase}: {len(self.points)} solves")
 
     def __call__(self, values: dict) -> Point:
-        key = tuple(round(float(values[k]), 12) for k in self.d.keys)
-        if key not in self._seen:
-            p = evaluate(self.d, values, self.extra)
-            self._seen[key] = p
-            self.points.append(p)
-        return self._seen[key]
+        return self.many([values])[0]
+
+    def many(self, batch) -> list:
+        """The points of ``batch`` (a list of value dicts), the new ones solved at once."""
+        keys = [self._key(v) for v in batch]
+        new = list({k: v for k, v in zip(keys, batch) if k not in self._seen}.items())
+        if new and self.client is not None and len(new) > 1:
+            futs = self.client.map(evaluate, [self.d] * len(new), [v for _, v in new],
+                                   [self.extra] * len(new), pure=False)
+            for (k, _), fut in zip(new, futs):
+                self._add(k, fut.result())
+        else:
+            for k, v in new:
+                self._add(k, evaluate(self.d, v, self.extra))
+        return [self._seen[k] for k in keys]
 
 
 # -- the search ---------------------------------------------------------------------------
@@ -458,31 +183,43 @@ class Evaluator:
 def bisect(d: Design, ev: Evaluator, key: str, good: Point, bad: Point) -> Point:
     """Bisect (in unit coordinates) between a feasible and an infeasible point of one key
     down to ``d.rtol``; returns the feasible end."""
-    ug, ub = d.to_unit(good.values)[0], d.to_unit(bad.values)[0]
+    return bisect_all(d, ev, key, [(good, bad)])[0]
+
+
+def bisect_all(d: Design, ev: Evaluator, key: str, pairs) -> list:
+    """Bisect every (feasible, infeasible) pair together, one parallel batch of midpoints
+    per step; returns the feasible ends."""
+    state = [[d.to_unit(g.values)[0], d.to_unit(b.values)[0], g] for g, b in pairs]
     tol = d.unit_tol(key)
-    while abs(ug - ub) > tol:
-        mid = ev(d.from_unit([0.5 * (ug + ub)]))
-        if mid.feasible:
-            ug, good = 0.5 * (ug + ub), mid
-        else:
-            ub = 0.5 * (ug + ub)
-    return good
+    while True:
+        live = [s for s in state if abs(s[0] - s[1]) > tol]
+        if not live:
+            return [s[2] for s in state]
+        mids = ev.many([d.from_unit([0.5 * (s[0] + s[1])]) for s in live])
+        for s, mid in zip(live, mids):
+            if mid.feasible:
+                s[0], s[2] = 0.5 * (s[0] + s[1]), mid
+            else:
+                s[1] = 0.5 * (s[0] + s[1])
 
 
 def search(d: Design, ev: Evaluator) -> list:
     """All analytical points of the search (1 key: scan, bisection of every feasibility
     boundary, bounded Brent about the best scanned point; more keys: differential
-    evolution on the penalised score)."""
+    evolution on the penalised score), each batch of independent solves in parallel when
+    the Evaluator has a client."""
     from scipy.optimize import differential_evolution, minimize_scalar
 
     if len(d.keys) == 1:
         key = d.keys[0]
-        scan = [ev(d.from_unit([u])) for u in np.linspace(0.0, 1.0, d.scan)]
-        for a, b in itertools.pairwise(scan):
-            if a.feasible != b.feasible:
-                bisect(d, ev, key, *((a, b) if a.feasible else (b, a)))
+        ev.phase = "scan"
+        scan = ev.many([d.from_unit([u]) for u in np.linspace(0.0, 1.0, d.scan)])
+        ev.phase = "bisection"
+        bisect_all(d, ev, key, [((a, b) if a.feasible else (b, a))
+                                for a, b in itertools.pairwise(scan) if a.feasible != b.feasible])
         feas = [i for i, p in enumerate(scan) if p.feasible and math.isfinite(p.objective)]
         if feas and d.minimise != "parameter":
+            ev.phase = "Brent"
             i = min(feas, key=lambda j: scan[j].objective)
             lo = (i - 1) / (d.scan - 1) if i > 0 else 0.0
             hi = (i + 1) / (d.scan - 1) if i < d.scan - 1 else 1.0
@@ -490,7 +227,54 @@ def search(d: Design, ev: Evaluator) -> list:
                             method="bounded", options={"xatol": d.unit_tol(key),
                                                        "maxiter": d.maxiter})
     else:
+        ev.phase = "differential evolution"
+
+        def mapper(_, us):  # a generation at once (updating = "deferred")
+            return [p.score for p in ev.many([d.from_unit(u) for u in us])]
+        parallel = {"updating": "deferred", "workers": mapper} if ev.client is not None \
+            else {"updating": "immediate"}  # one at a time: each trial sees the last
         differential_evolution(lambda u: ev(d.from_unit(u)).score, [(0.0, 1.0)] * len(d.keys),
                                maxiter=d.maxiter, popsize=6, seed=0, tol=1e-3, polish=False,
-                               init="sobol", updating="immediate")
+                               init="sobol", **parallel)
     return ev.points
+
+
+def _why(p: Point) -> str:
+    parts = []
+    for f in p.failed:
+        c = criteria_reg.CRITERIA.get(f)
+        text = c.fails if c else ("the model fails" if f == "error" else f"{f} above its bound")
+        if f == "deployed" and math.isfinite(p.metrics.get("deploy_share", math.nan)):
+            text += f" (tips at {p.metrics['deploy_share']:.2g} of their reach)"
+        parts.append(text)
+    return ", ".join(parts) or "passes"
+
+
+def diagnose(d: Design, points) -> tuple[str, list]:
+    """Why no design exists, in one line of physical terms, and its evidence: for one
+    searched key the ranges of the key over which the analytical runs fail the same way
+    (e.g. a brake alone: below a force the line runs away and a tip falls back, above it
+    the arms stay in); for several keys the closest point."""
+    pts = sorted((p for p in points if p.status == "ok" or p.failed), key=lambda p: tuple(
+        p.values[k] for k in d.keys))
+    if len(d.keys) != 1 or not pts:
+        near = max(points, key=lambda p: p.margin)
+        return ("the closest, " + ", ".join(f"{k} = {v:.4g}" for k, v in near.values.items())
+                + f", fails: {_why(near)} (margin {near.margin:.3g})"), [
+            {"values": near.values, "failed": list(near.failed), "margin": near.margin}]
+    key, groups = d.keys[0], []
+    for p in pts:
+        sig = tuple(sorted(p.failed))
+        if groups and groups[-1]["sig"] == sig:
+            groups[-1]["to"], groups[-1]["points"] = p.values[key], groups[-1]["points"] + [p]
+        else:
+            groups.append({"sig": sig, "from": p.values[key], "to": p.values[key],
+                           "points": [p]})
+    parts = []
+    for i, g in enumerate(groups):
+        rng = (f"up to {g['to']:.4g}" if i == 0 else f"from {g['from']:.4g}" if
+               i == len(groups) - 1 else f"{g['from']:.4g} to {g['to']:.4g}")
+        parts.append(f"{rng}: {_why(g['points'][len(g['points']) // 2])}")
+    evidence = [{"from": g["from"], "to": g["to"], "failed": list(g["sig"]),
+                 "points": len(g["points"])} for g in groups]
+    return f"{key} " + "; ".join(parts), evidence

@@ -43,8 +43,9 @@ def default_quantities(case, times) -> tuple:
     out += [f"{hub}@mean", "arm_length@mean", "deploy_time", "peak_tension"]
     if case.cable.failure_strain is not None:
         out += ["peak_utilisation", "margin.overstrain"]
-    out += [f"margin.{c}" for c in ("deployed", "recoil", "slack", "swing", "energy",
-                                    "momentum")]
+    from spinweb_fe.record.criteria import GENERAL
+
+    out += [f"margin.{c}" for c in GENERAL]
     return tuple(out)
 
 def parse_quantity(name: str) -> tuple:

@@ -39,10 +39,10 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from spinweb_fe.case.load import validate
 from spinweb_fe.case.text import base_path, read_toml
+from spinweb_fe.record import metrics as metric_reg
 from spinweb_fe.record import verdict
 from spinweb_fe.errors import InputError, RunError
 from spinweb_fe.run.estimate import case_elements
@@ -55,23 +55,19 @@ log = logging.getLogger(__name__)
 MODES = ("fe", "analytic")
 MODELS = ("consistent", "printed")
 TOP_KEYS = ("title", "base", "mode", "model", "set", "grid", "runs", "members", "seed", "random")
-#: metric columns: (name, units, description)
+#: the summary's columns after the swept keys: (name, units, description); the metrics are
+#: the registry's (record/metrics.py), then the verdict's and the run's own
 METRICS = (
-    ("deploy_time_s", "s", "first time every tip is at least verdict.deployed_fraction of its "
-                           "deployed distance from the hub axis (NaN: never)"),
-    ("peak_hub_torque_Nm", "N m", "largest |hub_torque|"),
-    ("final_hub_omega_rad_s", "rad/s", "hub_omega at the end of the run"),
-    ("max_tension_N", "N", "largest max_tension of the run"),
+    *((m.column, m.unit, m.measures) for m in metric_reg.METRICS.values()),
     ("recoiled", "1", "1 if the verdict's re-coil criterion fails (a tip fell back toward the "
                       "hub by more than verdict.recoil of its arm)"),
-    ("passed", "1", "1 if the run's verdict passes (every criterion that applies), else 0"),
+    ("passed", "1", "1 if the run's verdict passes (every required criterion that applies), "
+                    "else 0"),
     ("severity", "1", "the verdict's worst criterion against its limit (above 1: failed)"),
     ("wall_time_s", "s", "wall-clock time of the run (task)"),
 )
 #: metrics drawn in summary.png, with their axis labels
-PLOTTED = {"deploy_time_s": "time to full deployment [s]",
-           "peak_hub_torque_Nm": "peak |hub torque| [N m]",
-           "final_hub_omega_rad_s": "final hub rate [rad/s]", "max_tension_N": "max tension [N]"}
+PLOTTED = {m.column: m.plot for m in metric_reg.METRICS.values() if m.plot}
 
 
 @dataclass(frozen=True)
@@ -119,17 +115,33 @@ def flatten(table: dict, prefix: str = "") -> dict:
 
 
 def apply(raw: dict, overrides: dict, src, where) -> dict:
-    """A deep copy of the case dict ``raw`` with dotted ``overrides`` set."""
+    """A deep copy of the case dict ``raw`` with dotted ``overrides`` set; a number among
+    the parts indexes a list (``stowage.brake_force_table.1.1``: the second point's
+    force)."""
     raw = copy.deepcopy(raw)
     for dotted, value in overrides.items():
         node = raw
         parts = dotted.split(".")
         for p in parts[:-1]:
+            if isinstance(node, list):
+                node = _item(node, p, src, f"{where}.{dotted}")
+                continue
             node = node.setdefault(p, {})
-            if not isinstance(node, dict):
+            if not isinstance(node, (dict, list)):
                 raise InputError(src, f"{where}.{dotted}", f"'{p}' is not a table of the case")
-        node[parts[-1]] = value
+        if isinstance(node, list):
+            _item(node, parts[-1], src, f"{where}.{dotted}")
+            node[int(parts[-1])] = value
+        else:
+            node[parts[-1]] = value
     return raw
+
+
+def _item(node: list, part: str, src, key):
+    """``node[int(part)]``, or InputError when ``part`` is no index of it."""
+    if not part.isdigit() or int(part) >= len(node):
+        raise InputError(src, key, f"'{part}' is not an index of a list of {len(node)}")
+    return node[int(part)]
 
 
 def _clean(text: str, width: int = 48) -> str:
@@ -269,30 +281,13 @@ def load_sweep(path, mode=None, sets=(), only=(), force=False) -> Sweep:
                  src.read_text(encoding="utf-8"), tuple(grid), members, seed, draws)
 
 
-def history_metrics(h: dict, reach, hub_radius: float,
-                    fraction: float = verdict.DEFAULTS["deployed_fraction"]) -> dict:
-    """Metrics of one run from its ``/history`` (see METRICS and docs/sweep.md); the
-    verdict's columns (passed, severity, recoiled) come from its criteria.
-
-    Parameters
-    ----------
-    h : dict
-        ``time (T,)``, ``tip_position (T, n, 3)`` (FE) or ``arm_length`` and
-        ``arm_angle (T, n)`` (analytical), ``hub_torque``, ``hub_omega``, ``max_tension``.
-    reach : float or (n,) [m]
-        Each deployed tip's distance from the hub axis (record.verdict.reach_of; analytic:
-        r0 + H).
-    fraction : float
-        The deployed share of the reach (the case's verdict.deployed_fraction).
-    """
-    t = np.asarray(h["time"])
-    radius = verdict.tip_radius(h, hub_radius)
-    full = np.all(radius >= fraction * np.asarray(reach), axis=1)
-    t_dep = float(t[int(np.argmax(full))]) if full.any() else math.nan
-    return {"deploy_time_s": t_dep,
-            "peak_hub_torque_Nm": float(np.max(np.abs(h["hub_torque"]))),
-            "final_hub_omega_rad_s": float(h["hub_omega"][-1]),
-            "max_tension_N": float(np.max(h["max_tension"]))}
+def history_metrics(h: dict, crits, reach, hub_radius: float,
+                    fraction: float = verdict.DEFAULTS["deployed_fraction"],
+                    ea_fail: float | None = None) -> dict:
+    """The summary's metric columns of one run (record.metrics.compute of its ``/history``
+    and criteria, by column name; docs/sweep.md)."""
+    return metric_reg.columns(metric_reg.compute(h, crits, reach, hub_radius, fraction,
+                                                 ea_fail))
 
 
 def fe_metrics(path) -> tuple:
@@ -313,13 +308,13 @@ def fe_metrics(path) -> tuple:
         mesh = read_mesh_group(h5["mesh"])
         case = tomllib.loads(str(h5.attrs.get("case", "")))
         keys = ("time", "tip_position", "hub_position", "hub_axis", "hub_torque", "hub_omega",
-                "max_tension")
+                "max_tension", "brake_tension")
         h = {k: h5["history"][k][()] for k in keys if k in h5["history"]}
         crits = verdict.read_group(h5)
     if crits is None:
         raise RunError(f"{path} has no verdict (the run could not be judged: see run.log)")
     frac = verdict.limits_of(case.get("verdict"))["deployed_fraction"]
-    return history_metrics(h, verdict.reach_of(mesh), mesh.hub_radius, frac), crits
+    return history_metrics(h, crits, verdict.reach_of(mesh), mesh.hub_radius, frac), crits
 
 
 def run_one(task: dict) -> dict:
@@ -344,12 +339,10 @@ def run_one(task: dict) -> dict:
 
                 res = analytic.solve_case(case, model=task["model"])
                 analytic.write(out / "analytic.h5", case, res, rtol=1e-10, atol=1e-10)
-                if res.stopped:
-                    raise RunError(res.stopped, time=float(res.history["time"][-1]))
-                p = res.params
-                metrics = history_metrics(res.history, p.r0 + p.H, p.r0,
-                                          verdict.limits_of(case.verdict)["deployed_fraction"])
+                p = res.params  # a model that stopped (its validity) fails 'completed'
                 crits = analytic.judge(case, res)
+                metrics = history_metrics(res.history, crits, p.r0 + p.H, p.r0,
+                                          verdict.limits_of(case.verdict)["deployed_fraction"])
             recoil = next(c for c in crits if c.name == "recoil")
             metrics.update(recoiled=float(recoil.passed is False),
                            passed=float(verdict.passed(crits)), severity=verdict.severity(crits),
@@ -388,100 +381,3 @@ def member_log(out: Path):
         spin_log.removeHandler(handler)
         handler.close()
         spin_log.propagate, spin_log.level = saved
-
-
-def _failed(exc) -> dict:
-    row = {name: math.nan for name, _, _ in METRICS}
-    row["failed"] = "run failed"
-    row["status"] = one_line(exc)
-    return row
-
-
-def execute(sweep: Sweep, out_dir, scheduler=None, workers=2, progress=True) -> list:
-    """Run every case of ``sweep`` on Dask; return one row dict per run (index order).
-
-    Parameters
-    ----------
-    out_dir : Path
-        Sweep folder; run ``i`` writes ``out_dir/runs/<name>/``. With ``scheduler`` it must
-        be on a file system that the workers share.
-    scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://host:8786``); default: a LocalCluster
-        of ``workers`` processes with one thread each.
-    """
-    with dask_client(scheduler, workers) as client:
-        return _execute(sweep, Path(out_dir).resolve(), client, scheduler, workers, progress)
-
-
-@contextlib.contextmanager
-def _quiet_dask():
-    """Dask's own log lines (nanny, scheduler, comms) off while the sweep runs: a lost
-    worker shows as a failed run in the summary."""
-    import distributed  # noqa: F401  (creates its loggers)
-
-    names = ["distributed", *(n for n in logging.root.manager.loggerDict
-                              if n.startswith("distributed."))]
-    saved = {n: logging.getLogger(n).level for n in names}
-    for n in names:
-        logging.getLogger(n).setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        for n, level in saved.items():
-            logging.getLogger(n).setLevel(level)
-
-
-@contextlib.contextmanager
-def dask_client(scheduler=None, workers=2):
-    """A Dask client (the sweep's and the design's): a running scheduler's, or a
-    LocalCluster of ``workers`` processes with one thread each; Dask's log lines silenced;
-    client and cluster closed at the end. RunError if the cluster cannot be started or
-    reached."""
-    from dask.distributed import Client, LocalCluster
-
-    with _quiet_dask():
-        cluster = None
-        try:
-            if scheduler:
-                client = Client(scheduler, timeout="10s")
-            else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                       processes=True, dashboard_address=":0",
-                                       silence_logs=logging.WARNING)
-                client = Client(cluster)
-        except (OSError, TimeoutError) as exc:
-            if cluster is not None:
-                cluster.close()
-            raise RunError(f"cannot start or reach the Dask cluster "
-                           f"{scheduler or '(local)'}: {exc}") from None
-        try:
-            yield client
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-
-
-def _execute(sweep, out_dir, client, scheduler, workers, progress):
-    from dask.distributed import as_completed
-
-    rows = [None] * len(sweep.runs)
-    log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
-             scheduler or f"a local Dask cluster of {workers} worker process(es)")
-    futures = {}
-    for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
-        task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
-                "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
-        fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
-        futures[fut] = pos
-    for done, fut in enumerate(as_completed(futures), start=1):
-        i = futures[fut]
-        try:
-            rows[i] = fut.result()
-        except Exception as exc:  # the worker died or the task was lost
-            rows[i] = _failed(exc)
-        if progress:
-            log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
-                     rows[i]["status"], rows[i].get("wall_time_s", math.nan))
-    return rows
-
