@@ -14,6 +14,8 @@ LAYERS = ("meshgen", "spinweb_fe.errors", "spinweb_fe.fe", "spinweb_fe.record", 
           "spinweb_fe.linear", "spinweb_fe.case", "spinweb_fe.run", "spinweb_fe.analytic",
           "spinweb_fe.post", "spinweb_fe.sweep", "spinweb_fe.cli", "spinweb_fe.__main__")
 MAX_LINES = 500
+#: ... and no module within 10 % of it: the limit met by structure, not by squeezing
+ROOM = 0.9
 #: the folders of scripts beside the package (tests never import them)
 SCRIPTS = ("benchmarks", "studies", "tools")
 MAX_KERNEL_PARAMS = 14
@@ -146,9 +148,12 @@ def test_tests_never_import_the_scripts():
 
 
 def test_library_modules_stay_small():
+    """Modules stay under MAX_LINES, and out of its last 10 % (split by what they do, not
+    squeezed to fit)."""
+    cap = int(ROOM * MAX_LINES)
     big = {name: n for name, p in library_modules().items()
-           if (n := len(p.read_text().splitlines())) > MAX_LINES}
-    assert not big, f"modules over {MAX_LINES} lines: {big}"
+           if (n := len(p.read_text().splitlines())) > cap}
+    assert not big, f"modules over {cap} lines ({ROOM:.0%} of {MAX_LINES}): {big}"
 
 
 def _jitted(node) -> bool:
