@@ -17,7 +17,7 @@ FAST = ["--set", "time.end=0.01", "--set", "output.frame_dt=0", "--no-progress"]
 def test_check_prints_resolved_case(capsys):
     assert main(["check", str(CASES / "demo.toml")]) == 0
     out = capsys.readouterr().out
-    assert "cfl = 0.2" in out and "inertia = 10.0" in out and 'law = "spin_ramp"' in out
+    assert "cfl = 0.2" in out and "inertia = 100.0" in out and 'law = "torque_feedback"' in out
 
 
 @pytest.mark.parametrize("args,needle", [

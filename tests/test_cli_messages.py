@@ -114,7 +114,7 @@ def test_keys_at_fault_are_named(capsys):
     assert one_line(capsys.readouterr().err).startswith("spinweb: error: --mesh-width: the "
                                                         "side 20 m must be an integer multiple")
     assert main(["run", DEMO, "--set", "web.side=1e9", "-o", "/nonexistent/x"]) == 2
-    assert f"{DEMO}: web.side: gives about 2e+18 cable elements" in \
+    assert f"{DEMO}: web.side: gives about 5e+17 cable elements" in \
         one_line(capsys.readouterr().err)
 
 

@@ -34,7 +34,7 @@ EDGES = {  # name: (replace, by, key, words)
     "newline_title": ('title = "demo', 'title = "de\\nmo', "title", "'\\n'"),
     "escape_title": ('title = "demo', 'title = "\\u001b[31mred', "title", "'\\x1b'"),
     "long_title": ('title = "demo', 'title = "' + "x" * 5000, "title",
-                   "5047 characters long (at most 4096)"),
+                   "5051 characters long (at most 4096)"),
 }
 
 

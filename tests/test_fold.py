@@ -247,8 +247,8 @@ def test_build_other_topologies_flat(topology):
 
 
 # ---------------------------------------------------------------- ties = "frame" (default)
-# (side, mesh width, elements per segment, hub radius): the paper web, the demo web
-# (cases/demo.toml) and the Fig. 8 web (cases/analytic_fig8_*.toml, c = 5 m > r0 = 1 m)
+# (side, mesh width, elements per segment, hub radius): the paper web, a 20 m web (the
+# demo's side at a finer mesh; cases/demo.toml has t = 2 m) and the Fig. 8 web (cases/analytic_fig8_*.toml, c = 5 m > r0 = 1 m)
 FRAME_WEBS = [(100.0, 2.5, 1, R0), (100.0, 2.5, 2, R0), (20.0, 1.0, 1, 1.0),
               (20.0, 1.0, 2, 1.0), (100.0, 5.0, 1, 1.0), (100.0, 5.0, 3, R0)]
 
@@ -390,7 +390,7 @@ def test_frame_build_cases():
 
     from spinweb_fe.case import load
     cases = Path(__file__).parent.parent / "cases"
-    for name, c in (("demo.toml", 1.0), ("analytic_fig8_2pi.toml", 5.0),
+    for name, c in (("demo.toml", 2.0), ("analytic_fig8_2pi.toml", 5.0),
                     ("paper_free_web.toml", 7.5)):
         m = build_mesh(load(cases / name))
         assert tie_mode(m) == "frame" and check_mesh(m) == []
