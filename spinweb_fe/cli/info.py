@@ -97,38 +97,10 @@ def audit_lines(h5) -> list:
 def verdict_lines(h5, h) -> list:
     """The verdict a result file holds; judged here from its history for a file written
     before verdicts (its slack is then unknown)."""
+    from spinweb_fe.post.judged import criteria_of
     from spinweb_fe.record import verdict
 
-    crits = verdict.read_group(h5)
-    if crits is None:
-        crits = judge_file(h5, h)
-    return verdict.report(crits)
-
-
-def judge_file(h5, h) -> list:
-    """record.verdict.judge of an open FE or analytical result file without a /verdict."""
-    import tomllib
-
-    import numpy as np
-
-    from spinweb_fe.io.mesh import read_mesh_group
-    from spinweb_fe.record import verdict
-
-    case = tomllib.loads(h5.attrs.get("case", ""))
-    if "mesh" in h5:
-        mesh = read_mesh_group(h5["mesh"])
-        full, r0 = verdict.reach_of(mesh), mesh.hub_radius
-    else:
-        r0 = float(h5.attrs["hub_radius"])
-        full = np.full(int(h5.attrs["arms"]), r0 + float(h5.attrs["arm_length_H"]))
-    status = str(h5.attrs.get("status", "completed"))
-    if h5.attrs.get("stopped"):
-        status = f"stopped: {h5.attrs['stopped']}"
-    terms = verdict.case_terms(case)
-    if "mesh" not in h5:  # the analytical model: no failure strain, no gravity gradient
-        terms.update(failure_strain=None, gravity=False)
-    return verdict.judge(h, full, r0, status=status, out_of_plane="out_of_plane_max" in h,
-                         **terms, **verdict.floors_of(h5.attrs))
+    return verdict.report(criteria_of(h5, h))
 
 
 def _live(path, h) -> str:

@@ -1,6 +1,7 @@
-"""The paper's four-panel figure (arm length L, arm angle phi, omega_centre, omega_tip) and the
-out-of-plane panels (the web's distance from the hub plane, the tips' heights, the hub's
-tilt and nutation, its transverse rate)."""
+"""The paper's four-panel figure (arm length L, arm angle phi, omega_centre, omega_tip: every
+arm, as the spread across the arms, or one arm), the out-of-plane panels (the web's distance
+from the hub plane, the tips' heights, the hub's tilt and nutation, its transverse rate)
+and, through :mod:`spinweb_fe.post.verdict_plot`, the verdict panels."""
 
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ import numpy as np
 
 from spinweb_fe.errors import InputError
 from spinweb_fe.io.folder import check_writable
-from spinweb_fe.io.h5 import history_of, read_result
+from spinweb_fe.io.h5 import read_result
+from spinweb_fe.post.axes import save_figure, spread
+from spinweb_fe.post.judged import history_checked
 
 PANELS = (("arm_length", "L [m]"), ("arm_angle", "phi [rad]"),
           ("hub_omega", "omega_centre [rad/s]"), ("tip_omega", "omega_tip [rad/s]"))
@@ -19,7 +22,7 @@ OOP_PANELS = (("web_rms_max", "web from hub plane: RMS, max [m]"),
               ("tip_height", "tip height above hub plane [m]"),
               ("hub_tilt", "hub axis from +z, from L [rad]"),
               ("hub_transverse_rate", "hub transverse rate [rad/s]"))
-PANEL_SETS = ("arms", "out_of_plane")
+PANEL_SETS = ("arms", "out_of_plane", "verdict")
 
 
 def out_of_plane_columns(h) -> dict:
@@ -45,16 +48,8 @@ def out_of_plane_columns(h) -> dict:
 def load_for_plot(path):
     """(history dict, label) of a result file; the label is its folder (and model)."""
     path = Path(path)
-
-    def read(h5):
-        if "history" not in h5:
-            raise InputError(path, "history", "no /history group in this file")
-        return history_of(h5), h5.attrs.get("model", "")
-
-    h, label = read_result(path, read)
-    if not h:
-        raise InputError(path, "history", "no rows yet (the run stopped before its first "
-                         "rows were written)")
+    h, label = read_result(path, lambda h5: (history_checked(path, h5),
+                                             h5.attrs.get("model", "")))
     name = path.parent.name or path.stem
     label = f"{name} ({label})" if label else name
     return h, label
@@ -75,17 +70,22 @@ def _oop_panels(axes, t, cols, label, style, color):
         ax.set_ylabel(ylab)
 
 
-def plot_histories(curves, out, title=None, arm=0, t_max=None, panels="arms"):
+def plot_histories(curves, out, title=None, arm=None, t_max=None, panels="arms"):
+    """:func:`history_figure` saved as ``out``; returns its path."""
+    return save_figure(history_figure(curves, title, arm, t_max, panels), out)
+
+
+def history_figure(curves, title=None, arm=None, t_max=None, panels="arms"):
     """Overlay histories on the four panels (``panels`` 'arms', or 'out_of_plane':
-    :data:`OOP_PANELS`) and save ``out``.
+    :data:`OOP_PANELS`); returns the matplotlib Figure.
 
     Parameters
     ----------
     curves : list of (history dict, label, matplotlib style or None)
-    out : path
     title : str or None
-    arm : int
-        Which arm's L, phi and omega_tip to draw (all arms move alike in symmetric runs).
+    arm : int or None
+        Which arm's L, phi and omega_tip to draw; None: every arm, as their spread (the
+        band from the least to the largest, the mean as the line: :func:`spread`).
     t_max : float or None [s]
         Draw up to this time (default: everything).
     """
@@ -106,9 +106,9 @@ def plot_histories(curves, out, title=None, arm=0, t_max=None, panels="arms"):
             if key not in h:
                 continue
             y = h[key]
-            if y.ndim == 2:
+            if y.ndim == 2 and arm is not None:
                 y = y[:, min(arm, y.shape[1] - 1)]
-            ax.plot(t[sel], y[sel], *([style] if style else []), label=label, lw=1.2)
+            spread(ax, t[sel], y[sel], style, None if style else f"C{index % 10}", label)
             ax.set_ylabel(ylab)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
@@ -118,10 +118,7 @@ def plot_histories(curves, out, title=None, arm=0, t_max=None, panels="arms"):
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return Path(out)
+    return fig
 
 
 def check_figure_path(out) -> Path:
@@ -137,8 +134,11 @@ def check_figure_path(out) -> Path:
     return out
 
 
-def four_panel(files, out, labels=None, arm=0, title=None, panels="arms"):
-    """The four panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``.
+def four_panel(files, out, labels=None, arm=None, title=None, panels="arms"):
+    """The panels of several result files (``results.h5`` / ``analytic.h5``) -> ``out``:
+    'arms' (every arm's spread, or ``arm``), 'out_of_plane', or 'verdict'
+    (:func:`spinweb_fe.post.verdict_plot.verdict_panels`). The title defaults to the
+    cases' titles.
 
     Raises
     ------
@@ -151,6 +151,10 @@ def four_panel(files, out, labels=None, arm=0, title=None, panels="arms"):
         raise InputError("--panels", "", f"unknown panel set '{panels}' (valid: "
                          f"{', '.join(PANEL_SETS)})")
     check_figure_path(out)
+    if panels == "verdict":
+        from spinweb_fe.post.verdict_plot import verdict_figure
+
+        return verdict_figure(files, out, labels=labels, title=title)
     curves = []
     for i, f in enumerate(files):
         h, label = load_for_plot(f)
@@ -160,8 +164,24 @@ def four_panel(files, out, labels=None, arm=0, title=None, panels="arms"):
                              "[perturbation] or hub.motion = 'free')")
         n_arms = h["arm_length"].shape[1] if "arm_length" in h and h["arm_length"].ndim == 2 \
             else 1
-        if not 0 <= arm < n_arms:
+        if arm is not None and not 0 <= arm < n_arms:
             raise InputError("--arm", "", f"arm {arm} does not exist: {f} has {n_arms} "
                              f"arm{'s' if n_arms > 1 else ''} (0 to {n_arms - 1})")
         curves.append((h, labels[i] if labels else label, None))
-    return plot_histories(curves, out, title=title, arm=arm, panels=panels)
+    return plot_histories(curves, out, title=title or cases_title(files), arm=arm,
+                          panels=panels)
+
+
+def cases_title(files) -> str | None:
+    """The titles of the cases of result files, each once, joined by ' | ' (None: none)."""
+    import tomllib
+
+    def title(h5):
+        return str(tomllib.loads(str(h5.attrs.get("case", ""))).get("title", "") or "")
+
+    titles = []
+    for f in files:
+        t = read_result(f, title)
+        if t and t not in titles:
+            titles.append(t)
+    return " | ".join(titles) or None

@@ -192,12 +192,16 @@ def _line_label(sweep: Sweep, run, series) -> str:
 
 def plot_summary(sweep: Sweep, rows, path):
     """Metrics against the first swept key, one line per combination of the other keys
-    that vary independently of it; failed runs are left out, re-coiled runs ringed."""
+    that vary independently of it, each run's point green when its verdict passes and red
+    when it fails; failed runs are left out, re-coiled runs ringed. A metric no run has
+    (nothing deployed) gives its panel to the verdict's severity."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import matplotlib.ticker
+
+    from spinweb_fe.post.axes import untangle_ticks
 
     if sweep.members:
         return plot_members(sweep, rows, path)
@@ -210,34 +214,43 @@ def plot_summary(sweep: Sweep, rows, path):
     for run, row, xv in zip(sweep.runs, rows, xs):
         groups.setdefault(_line_label(sweep, run, series), []).append(
             (xv if numeric else cats.index(str(xv)), row))
+    shown = _panels(rows)
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for ax, (metric, ylabel) in zip(axes.flat, PLOTTED.items()):
+    for ax, metric in zip(axes.flat, shown):
         for colour, (label, pts) in enumerate(groups.items()):
             pts = sorted(pts, key=lambda p: p[0])
             x = np.array([p[0] for p in pts], dtype=float)
             y = np.array([p[1].get(metric, math.nan) for p in pts], dtype=float)
             if np.all(np.isnan(y)):  # every run of this line failed
                 continue
-            ax.plot(x, y, "o-", color=f"C{colour % 10}", label=label or None)
+            ax.plot(x, y, "-", color=f"C{colour % 10}", label=label or None)
+            verdicts = np.array([p[1].get("passed", math.nan) for p in pts], dtype=float)
+            for value, mark, name in ((1.0, "tab:green", "verdict passes"),
+                                      (0.0, "tab:red", "verdict fails")):
+                sel = verdicts == value
+                ax.plot(x[sel], y[sel], "o", color=mark, ms=6, label=name)
             rec = np.array([p[1].get("recoiled") == 1.0 for p in pts])
             if rec.any():
                 ax.plot(x[rec], y[rec], "o", ms=12, mfc="none", mec="red", mew=1.5)
-        ax.set_ylabel(ylabel)
+        if metric == "severity":
+            ax.axhline(1.0, color="0.3", ls="--", lw=1.0)
+        ax.set_ylabel(SHOWN.get(metric, PLOTTED.get(metric, metric)))
         ax.grid(alpha=0.3)
+    bottom = _bottom(axes, len(shown))
     ticks = sorted(set(xs)) if numeric else []
-    for ax in axes.flat:
+    for ax in axes.flat[:len(shown)]:
         if not numeric:
-            ax.set_xticks(range(len(cats)), cats, rotation=30)
+            ax.set_xticks(range(len(cats)), cats)
             continue
         if min(xs) > 0 and max(xs) > 10 * min(xs):
             ax.set_xscale("log")
         if len(ticks) <= 8:  # label the swept values themselves
             ax.set_xticks(ticks, [f"{v:.4g}" for v in ticks])
             ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    for ax in axes[1]:
+    for ax in bottom:
         ax.set_xlabel(_key_label(xkey))
     handles = {}
-    for ax in axes.flat:  # one legend entry per line, whichever panel drew it
+    for ax in axes.flat[:len(shown)]:  # one legend entry per line, whichever panel drew it
         handles.update(zip(*reversed(ax.get_legend_handles_labels())))
     top = 0.95
     if handles:
@@ -247,10 +260,36 @@ def plot_summary(sweep: Sweep, rows, path):
     n_fail = sum(r["status"] != "ok" for r in rows)
     fig.suptitle(f"{sweep.title or sweep.source.name} ({sweep.mode}; "
                  f"{len(rows) - n_fail} ok, {n_fail} failed; red ring: re-coiled)", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, top))
+    for _ in range(2):  # the labels fitted to the laid-out panels, the layout to the labels
+        fig.tight_layout(rect=(0, 0, 1, top))
+        for ax in bottom:
+            untangle_ticks(fig, ax, rotation=0.0 if numeric else 30.0)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+#: the panel that replaces a metric no run has
+SHOWN = {"severity": "verdict severity (above 1: fails)"}
+
+
+def _bottom(axes, n) -> list:
+    """The 2 x 2 ``axes`` cut to ``n`` panels (the rest removed: no empty panel); returns
+    the lowest panel of each column, which show the x tick labels."""
+    for ax in axes.flat[n:]:
+        ax.remove()
+    bottom = {4: [axes[1, 0], axes[1, 1]], 3: [axes[1, 0], axes[0, 1]],
+              2: [axes[0, 0], axes[0, 1]], 1: [axes[0, 0]]}[n]
+    for ax in bottom:
+        ax.tick_params(labelbottom=True)
+    return bottom
+
+
+def _panels(rows) -> list:
+    """The metrics of :data:`PLOTTED` that some run has, then the verdict's severity in place
+    of those none has (at least one panel)."""
+    has = [m for m in PLOTTED if any(math.isfinite(_num(r.get(m))) for r in rows)]
+    return has + ["severity"] if len(has) < len(PLOTTED) else has
 
 
 def plot_members(sweep: Sweep, rows, path):
@@ -262,6 +301,8 @@ def plot_members(sweep: Sweep, rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from spinweb_fe.post.axes import untangle_ticks
+
     numeric = [d.key for d in sweep.draws if all(
         _num(r.values[d.key]) == _num(r.values[d.key]) for r in sweep.runs)]
     spread = [d.key for d in sweep.draws if d.dist != "choice" and d.key in numeric]
@@ -269,8 +310,10 @@ def plot_members(sweep: Sweep, rows, path):
     x = np.array([_num(r.values[xkey]) if xkey else r.member for r in sweep.runs])
     ok = np.array([row.get("passed") == 1.0 for row in rows])
     marks = "osD^v<>"
+    shown = _panels(rows)
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
-    for ax, (metric, ylabel) in zip(axes.flat, PLOTTED.items()):
+    for ax, metric in zip(axes.flat, shown):
+        ylabel = SHOWN.get(metric, PLOTTED.get(metric, metric))
         y = np.array([row.get(metric, math.nan) for row in rows], dtype=float)
         for g, (label, pos) in enumerate(groups(sweep).items()):
             sel = np.zeros(len(rows), bool)
@@ -281,9 +324,12 @@ def plot_members(sweep: Sweep, rows, path):
                     else "tab:green", label=f"{name}passes")
             ax.plot(x[sel & ~ok], y[sel & ~ok], m, color="tab:red", ms=5, mfc="none" if g
                     else "tab:red", label=f"{name}fails")
+        if metric == "severity":
+            ax.axhline(1.0, color="0.3", ls="--", lw=1.0)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    for ax in axes[1]:
+    bottom = _bottom(axes, len(shown))
+    for ax in bottom:
         ax.set_xlabel(_key_label(xkey) if xkey else "member")
     axes.flat[0].legend(fontsize=7)
     rates = []
@@ -293,7 +339,10 @@ def plot_members(sweep: Sweep, rows, path):
                      f"[{100 * pr['low']:.0f}, {100 * pr['high']:.0f}] %")
     fig.suptitle(f"{sweep.title or sweep.source.name} ({sweep.mode})\n" + "; ".join(rates),
                  fontsize=10)
-    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    for _ in range(2):
+        fig.tight_layout(rect=(0, 0, 1, 0.95))
+        for ax in bottom:
+            untangle_ticks(fig, ax)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
