@@ -178,3 +178,31 @@ def test_an_arm_hanging_from_its_front_pivots_about_it_and_wraps_over_its_coil()
     wound = np.linspace(0.0, 0.6, 13)[1:]
     np.testing.assert_allclose(phi[28:, 0], -s_f / R0 + math.pi / 2 + wound, atol=1e-9)
     np.testing.assert_allclose(L[28:, 0], l - R0 * wound, rtol=1e-9)
+
+
+def test_payout_speed_is_not_a_difference_across_a_release(tmp_path):
+    """The demo web's last two levels (2 m each) are released at once, 0.86-1.0 s: the
+    difference of the paid-out length across them read 2 000-2 143 m/s. Now those rows are
+    NaN (a jump, no speed; the earlier releases, measured by the arm's tangent point on
+    the rim, stay continuous) and every other row is a speed the arm can have: below its
+    tips' largest speed about the hub axis plus the rim's (about 13 m/s here; the largest
+    payout speed 12.6 m/s)."""
+    import h5py
+
+    from spinweb_fe.cli import main
+
+    out = tmp_path / "demo"
+    assert main(["run", "cases/demo.toml", "-o", str(out), "--set", "time.end=1.1", "--set",
+                 "output.frame_dt=0", "--no-progress"]) == 0
+    with h5py.File(out / "results.h5") as h5:
+        h = {k: h5["history"][k][()] for k in ("payout_speed", "payout_front", "tip_position",
+                                                 "tip_omega", "hub_omega")}
+    v, front = h["payout_speed"], h["payout_front"]
+    jumped = np.abs(np.diff(front, axis=0)) >= 1.0  # a 2 m level in one row
+    # the last releases of every arm (measured from the front, no longer from the
+    # tangent point on the rim, which the earlier ones keep continuous)
+    assert (np.isnan(v[1:]) & jumped).any(axis=0).all()
+    r = np.hypot(h["tip_position"][..., 0], h["tip_position"][..., 1])
+    bound = np.max(np.abs(h["tip_omega"]) * r) + 1.0 * np.max(np.abs(h["hub_omega"]))
+    assert np.nanmax(np.abs(v)) < bound
+    assert np.isnan(v).sum() <= 4 * v.shape[1]  # NaN only at the jumps

@@ -146,3 +146,48 @@ def test_progress_lines_when_stderr_is_no_terminal(monkeypatch, capsys):
     quiet = terminal.Progress(2.0, enabled=False)  # --no-progress: nothing at all
     quiet.rows({"time": np.array([0.5])})
     assert capsys.readouterr().err == ""
+
+
+def test_the_eta_is_the_loops(monkeypatch, capsys):
+    """The ETA counts from the loop's start, not from set-up: 100 s of compile before it, then
+    1 s of loop for 0.5 of 2 s, leaves 3 s (0.05 min), not 303 s."""
+    import numpy as np
+
+    from spinweb_fe.record.recorders import RunInfo
+    from spinweb_fe.run import terminal
+
+    clock = iter([0.0, 100.0, 101.0])
+    monkeypatch.setattr(terminal.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(terminal, "LINE_EVERY_S", 0.0)
+    bar = terminal.Progress(2.0, enabled=True)
+    bar.start(RunInfo(None, 1e-3, 2000, 0, 1))
+    bar.rows({"time": np.array([0.5])})
+    assert capsys.readouterr().err == "t = 0.5 / 2 s (25.0 %), 0.0 min so far, ETA 0.1 min\n"
+
+
+def test_the_bar_starts_with_the_loop(monkeypatch):
+    """On a terminal: nothing before the loop starts (the compile), then a tqdm bar of the
+    steps with the simulated time, closed at the end."""
+    import io
+
+    import numpy as np
+
+    from spinweb_fe.record.recorders import RunInfo
+    from spinweb_fe.run import terminal
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    err = Tty()
+    monkeypatch.setattr(terminal.sys, "stderr", err)
+    monkeypatch.delenv("CI", raising=False)
+    bar = terminal.Progress(2.0, enabled=True)
+    assert err.getvalue() == "" and bar.bar is None
+    bar.start(RunInfo(None, 1e-3, 2000, 500, 1))
+    bar.rows({"time": np.array([1.0])})
+    assert bar.bar.n == 1000 and bar.bar.total == 2000
+    bar.end("completed")
+    assert bar.bar is None
+    text = err.getvalue()
+    assert "run:" in text and "t = 1.0000 / 2 s" in text and "1.00k/2.00k" in text

@@ -101,12 +101,17 @@ class ArmTracker:
                                if coiled else 0.0)
         self.prev_phi = np.full(self.n, np.nan)
         self.prev_sd = np.full(self.n, np.nan)  # departure coordinate of the previous row
+        self.prev_front = np.full(self.n, np.nan)  # its front, the front's level spacing,
+        self.prev_gap = np.full(self.n, np.nan)  # and whether the departure point was the
+        self.prev_tangent = np.zeros(self.n, bool)  # tangent point on the rim
+        self.tangent = np.zeros((0, self.n), bool)  # the last rows': the same
         self.waiting = np.zeros(self.n, bool)  # a rate payout's front waits for its arm
 
     def memory(self) -> dict:
         """What the measure carries from row to row (copies)."""
         return {k: getattr(self, k).copy() for k in
-                ("mode", "sense", "prev_ad", "prev_phi", "prev_sd", "waiting")}
+                ("mode", "sense", "prev_ad", "prev_phi", "prev_sd", "prev_front",
+                 "prev_gap", "prev_tangent", "waiting")}
 
     def restore(self, memory: dict) -> None:
         """Continue from :meth:`memory` of an earlier run (same mesh)."""
@@ -128,15 +133,35 @@ class ArmTracker:
                "tip_position": probe_pos[:, :self.n].copy()}
         if arm_table is None:
             return out
-        prev = np.vstack([self.prev_sd[None, :], sd[:-1]])
-        speed = np.where(np.isfinite(prev) & np.isfinite(sd), (prev - sd) / row_dt, 0.0)
-        if len(sd):
-            self.prev_sd = sd[-1].copy()
+        speed = self._speed(sd, arm_table["front"], arm_table["next"], row_dt)
         out.update(payout_front=arm_table["front"].copy(), payout_speed=speed)
         if rate if law is None else law:
             out["payout_allowed"] = arm_table["allowed"].copy()
             self._watch(arm_table, sd, rows["time"])
         return out
+
+    def _speed(self, sd, front, nxt, row_dt):
+        """(T, n_arms) [m/s] the rate of the paid-out length between rows, NaN where the
+        departure point jumps (no speed is defined across a jump): the measure switches
+        between the tangent point on the rim and the front, or the front it measures moves
+        by half a level or more between two rows (a level released at once; a device's
+        front moves with its line, a level in a row only at 1000 m/s for 2 m levels and 1 ms
+        rows)."""
+        prev = np.vstack([self.prev_sd[None, :], sd[:-1]])
+        speed = np.where(np.isfinite(prev) & np.isfinite(sd), (prev - sd) / row_dt, 0.0)
+        gap = np.abs(nxt - front)
+        prev_tan = np.vstack([self.prev_tangent[None, :], self.tangent[:-1]])
+        prev_front = np.vstack([self.prev_front[None, :], front[:-1]])
+        prev_gap = np.vstack([self.prev_gap[None, :], gap[:-1]])
+        with np.errstate(invalid="ignore"):
+            released = np.abs(front - prev_front) >= 0.5 * prev_gap
+        switched = self.tangent != prev_tan
+        jump = np.isfinite(prev) & (switched | (released & ~self.tangent & ~prev_tan))
+        if len(sd):
+            self.prev_sd = sd[-1].copy()
+            self.prev_front, self.prev_gap = front[-1].copy(), gap[-1].copy()
+            self.prev_tangent = self.tangent[-1].copy()
+        return np.where(jump, np.nan, speed)
 
     def update(self, probe_pos, probe_vel, hub_angle, arm_table=None, rate=False):
         """(T, n_arms, 3) tip positions / velocities, (T,) hub angle and optionally a held
@@ -146,6 +171,7 @@ class ArmTracker:
         T, n = probe_pos.shape[0], self.n
         tip_p, tip_v = probe_pos[:, :n], probe_vel[:, :n]
         L, phi, sd = np.empty((T, n)), np.empty((T, n)), np.full((T, n), np.nan)
+        self.tangent = np.zeros((T, n), bool)
         for k in range(n):
             for t in range(T):
                 th_r = hub_angle[t] + self.root[k]
@@ -164,7 +190,8 @@ class ArmTracker:
                 L[t, k], phi[t, k], a_d = self._about(k, alpha_a, th_r, tip_p[t, k])
                 self.prev_phi[k] = phi[t, k]
                 if arm_table is not None:
-                    sd[t, k] = (self.root_coord + self.r0 * a_d if on_rim and a_d > 0
+                    self.tangent[t, k] = on_rim and a_d > 0
+                    sd[t, k] = (self.root_coord + self.r0 * a_d if self.tangent[t, k]
                                 else arm_table["front"][t, k])
         px, py = tip_p[..., 0], tip_p[..., 1]
         r2 = np.maximum(px * px + py * py, 1e-300)

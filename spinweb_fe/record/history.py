@@ -35,7 +35,8 @@ COLUMNS = {
     "tip_position": Column("m", "position of each arm's tip (corner) node, inertial frame"),
     "payout_front": Column("m", "held coil: arm coordinate of each arm's peel front (its "
                                 "base once everything is released)"),
-    "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length"),
+    "payout_speed": Column("m/s", "held coil: rate of each arm's paid-out length; NaN across a "
+                               "jump of the departure point (a level released at once)"),
     "payout_allowed": Column("m", "gate or reel (payout = gate or rate): the paid-out length "
                                   "the law allows"),
     "max_strain": Column("1", "failure strain given: strain of the most utilised element, "

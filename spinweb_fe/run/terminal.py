@@ -17,41 +17,45 @@ LINE_EVERY_S = 60.0  # [s] wall time between two progress lines when stderr is n
 
 
 class Progress(Recorder):
-    """Simulated time, steps/s and ETA on stderr: a bar on a terminal (not under CI), else
-    one plain line every LINE_EVERY_S of wall time (a long batch run shows it is alive)."""
+    """Steps, simulated time, steps/s and the ETA of the loop on stderr: a tqdm bar on a
+    terminal (not under CI), else one plain line every LINE_EVERY_S of wall time (a long
+    batch run shows it is alive). Both start with the loop (the loop tells its start after
+    the step loop is compiled or loaded): the ETA is the loop's rate, compile time left
+    out."""
 
     def __init__(self, t_end, enabled=True):
         self.t_end = t_end
         self.enabled = enabled and sys.stderr.isatty() and not os.environ.get("CI")
         self.lines = enabled and not self.enabled
-        self.t0 = time.perf_counter()
-        self.last_line = self.t0
-        self.last = 0.0
+        self.bar = None
         self.dt = 1.0
-        self.mark = (self.t0, 0.0)  # (wall clock, simulated time) of the last update
+        self.t0 = time.perf_counter()  # wall clock of the loop's start
+        self.last_line = self.t0
+        self.t_start = 0.0  # simulated time of the loop's start [s]
 
     def start(self, info):
         self.dt = info.dt
-        self.mark = (time.perf_counter(), info.step0 * info.dt)
+        self.t0 = self.last_line = time.perf_counter()
+        self.t_start = info.step0 * info.dt
+        if self.enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=info.n_total, initial=info.step0, desc="run", unit="step",
+                            unit_scale=True, file=sys.stderr, dynamic_ncols=True,
+                            mininterval=0.2, smoothing=0.3)
+            self.bar.set_postfix_str(self._time(self.t_start), refresh=False)
+
+    def _time(self, t) -> str:
+        return f"t = {t:.4f} / {self.t_end:g} s"
 
     def rows(self, rows):
-        if self.lines:
-            self._line(float(rows["time"][-1]))
-        if not self.enabled:
-            return
         t = float(rows["time"][-1])
-        now = time.perf_counter()
-        if now - self.last < 0.2 and t < self.t_end:
-            return
-        steps_per_s = (t - self.mark[1]) / self.dt / max(now - self.mark[0], 1e-9)
-        self.last, self.mark = now, (now, t)
-        frac = min(t / self.t_end, 1.0)
-        el = now - self.t0
-        eta = el * (1 - frac) / frac if frac > 0 else float("nan")
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r[{bar:<30}] t = {t:8.4f} / {self.t_end:g} s  "
-                         f"{steps_per_s:9.3g} steps/s  ETA {eta:6.1f} s ")
-        sys.stderr.flush()
+        if self.lines:
+            self._line(t)
+        if self.bar is not None:
+            step = min(int(round(t / self.dt)), self.bar.total)
+            self.bar.set_postfix_str(self._time(t), refresh=False)
+            self.bar.update(step - self.bar.n)
 
     def _line(self, t):
         now = time.perf_counter()
@@ -60,15 +64,16 @@ class Progress(Recorder):
         self.last_line = now
         frac = min(t / self.t_end, 1.0)
         el = now - self.t0
-        eta = el * (1 - frac) / frac if frac > 0 else float("nan")
+        done = t - self.t_start  # simulated in this call (a restart starts later)
+        eta = el * (self.t_end - t) / done if done > 0 else float("nan")
         sys.stderr.write(f"t = {t:.6g} / {self.t_end:g} s ({100 * frac:.1f} %), "
                          f"{el / 60:.1f} min so far, ETA {eta / 60:.1f} min\n")
         sys.stderr.flush()
 
     def end(self, status):
-        if self.enabled:  # once: the driver also ends it when the loop raised
-            sys.stderr.write("\n")
-            self.enabled = False
+        if self.bar is not None:  # once: the driver also ends it when the loop raised
+            self.bar.close()
+            self.bar = None
 
 
 class StopSignals:
