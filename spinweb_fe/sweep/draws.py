@@ -163,13 +163,11 @@ def member_values(draws, seed: int, member: int) -> dict:
 def wilson(passes: int, n: int, confidence: float = CONFIDENCE) -> tuple:
     """(low, high) Wilson score interval of a pass rate passes / n (n = 0: (0, 1)); it
     keeps inside [0, 1] and stays meaningful at 0 and n passes, where the normal
-    approximation's interval collapses to a point."""
+    approximation's interval collapses to a point (scipy.stats.binomtest's
+    proportion_ci, method 'wilson')."""
     if n == 0:
         return 0.0, 1.0
-    from statistics import NormalDist
+    from scipy.stats import binomtest
 
-    z = NormalDist().inv_cdf(0.5 + 0.5 * confidence)
-    p = passes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    ci = binomtest(passes, n).proportion_ci(confidence, method="wilson")
+    return max(0.0, float(ci.low)), min(1.0, float(ci.high))
