@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test validate mutate bench clean
+.PHONY: demo demo-free test validate mutate bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -14,9 +14,20 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/spinweb run cases/demo.toml -o out/demo
-	$(BIN)/spinweb plot out/demo/results.h5 -o out/demo/plot.png
+	$(BIN)/spinweb plot out/demo/results.h5 --panels verdict -o out/demo/plot.png
 	$(BIN)/spinweb render out/demo/results.h5 -o out/demo/web.png
-	@echo "results: out/demo/results.h5, ParaView: out/demo/web.pvd, plot: out/demo/plot.png, picture: out/demo/web.png"
+	@$(BIN)/spinweb info --verdict out/demo/results.h5
+	@echo "picture: out/demo/web.png   plot of what the verdict judged: out/demo/plot.png"
+	@echo "results: out/demo/results.h5   ParaView: out/demo/web.pvd"
+
+# the same web without the torque (free deployment): its verdict fails
+demo-free: $(STAMP)
+	$(BIN)/spinweb run cases/demo.toml -o out/demo_free --set 'control.law="free"' \
+		--set 'title="demo web without the torque: free deployment"'
+	$(BIN)/spinweb plot out/demo_free/results.h5 --panels verdict -o out/demo_free/plot.png
+	$(BIN)/spinweb render out/demo_free/results.h5 -o out/demo_free/web.png
+	@$(BIN)/spinweb info --verdict out/demo_free/results.h5
+	@echo "picture: out/demo_free/web.png   plot of what the verdict judged: out/demo_free/plot.png"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -9,6 +9,8 @@ def add_parser(sub):
     p.add_argument("--criteria", action="store_true",
                    help="list the verdict criteria and the run metrics (their registries: "
                         "what each measures, its unit, limit key and default)")
+    p.add_argument("--verdict", action="store_true",
+                   help="only the verdict: the overall line, then one line per criterion")
     return p
 
 
@@ -117,6 +119,15 @@ def _live(path, h) -> str:
     return (f"interrupted: no process is running it any more (killed {when}?); {again}")
 
 
+def verdict_only(path) -> str:
+    """The verdict lines of a result file (judged from its history if it has no /verdict)."""
+    from spinweb_fe.io.h5 import read_result
+    from spinweb_fe.post.judged import history_checked
+
+    return read_result(path, lambda h5: "\n".join(
+        verdict_lines(h5, history_checked(Path(path), h5))))
+
+
 def registries() -> list:
     """Lines of ``--criteria``: the criteria and metrics registries."""
     from spinweb_fe.record import criteria, metrics
@@ -138,5 +149,5 @@ def run(args) -> int:
             return 0
     elif args.result is None:
         raise InputError("RESULT", "", "missing: the result file (or --criteria)")
-    print(summary(args.result))
+    print(verdict_only(args.result) if args.verdict else summary(args.result))
     return 0
