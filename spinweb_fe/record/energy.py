@@ -27,7 +27,7 @@ def energy_floor(model) -> float:
     free web at rest holds 1e-22 J after a millisecond, which against an initial 8e-23 J
     read as 'energy balance off by 387 %'. The floor is the strain energy of every element
     stretched by FLOOR_ULPS such units, sum(EA / L) (FLOOR_ULPS eps X)^2 / 2: 1.5e-15 J for
-    that web (round-off 1e4 times below it), 1e-17 J for the demo, far below any energy a
+    that web (round-off 1e4 times below it), 4e-18 J for the demo, far below any energy a
     moving scene or an instability has (joules).
     """
     x = max(float(np.max(np.abs(model.mesh.node_ref), initial=0.0)),
