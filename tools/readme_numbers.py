@@ -80,9 +80,19 @@ def run_one(name: str, out: Path) -> dict:
 
 
 def _g(x, digits=2) -> str:
-    """'1.8e-13' for 1.8e-13 (no '+' or leading zero in the exponent)."""
-    s = f"{x:.{digits}g}"
+    """Two significant digits, kept: '0.30', '1.0', '86', '1.8e-13' (no '+' or leading
+    zero in the exponent); from 100 on, whole numbers."""
+    if abs(x) >= 100:
+        return f"{x:.0f}"
+    s = f"{x:#.{digits}g}".rstrip(".")
+    s = s.replace(".e", "e")
     return re.sub(r"e([+-])0*(\d)", lambda m: "e" + ("-" if m[1] == "-" else "") + m[2], s)
+
+
+def _e(x) -> str:
+    """'3.0e-3', '1.8e-13': two significant digits in scientific notation."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + ("-" if m[1] == "-" else "") + m[2],
+                  f"{x:.1e}")
 
 
 def _pct(x) -> str:
@@ -113,7 +123,7 @@ def run_table(rows: dict) -> list:
         contact = "-" if r["controlled"] else _pct(r["contact_share_of_KE0"])
         out.append(f"| {label} | {r['end_s']:g} s | {_int(r['elements'])} | "
                    f"{_steps(r['steps'])} | {_wall(r['wall_s'])} | {_pct(r['energy_error'])} | "
-                   f"{_g(r['angular_momentum_error'])} | {contact} |")
+                   f"{_e(r['angular_momentum_error'])} | {contact} |")
     return out
 
 
@@ -132,7 +142,7 @@ def _what(r) -> str:
     parts = []
     for c in bad:
         unit = "" if c["units"] == "1" else f" {c['units']}"
-        text = f"{c['name']} {_g(c['value'])}{unit} (limit {_g(c['limit'])}{unit})"
+        text = f"{c['name']} {_g(c['value'])}{unit} (limit {c['limit']:g}{unit})"
         back = re.search(r"fell back ([0-9.e+]+) m", c["detail"])
         if c["name"] == "recoil" and back:
             text += f": a tip {float(back[1]):.3g} m back"
