@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import sys
 import threading
@@ -11,6 +10,7 @@ import time
 
 from spinweb_fe.errors import RunError, RunInterrupted
 from spinweb_fe.record.recorders import Recorder
+from spinweb_fe.run.progress import enabled as bar_wanted
 
 SETUP = "during set-up, before anything was written"
 LINE_EVERY_S = 60.0  # [s] wall time between two progress lines when stderr is no terminal
@@ -25,7 +25,7 @@ class Progress(Recorder):
 
     def __init__(self, t_end, enabled=True):
         self.t_end = t_end
-        self.enabled = enabled and sys.stderr.isatty() and not os.environ.get("CI")
+        self.enabled = bar_wanted(enabled)
         self.lines = enabled and not self.enabled
         self.bar = None
         self.dt = 1.0
