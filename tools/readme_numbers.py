@@ -75,7 +75,8 @@ def run_one(name: str, out: Path) -> dict:
             "verdict": "pass" if verdict.passed(crits) else "fail",
             "criteria": [{"name": c.name, "passed": c.passed, "value": c.value,
                           "limit": c.limit, "units": c.units, "time": c.time, "arm": c.arm,
-                          "detail": c.detail} for c in crits],
+                          "detail": c.detail, "required": getattr(c, "required", True)}
+                         for c in crits],
             "load_1min": [load0, os.getloadavg()[0]], "date": time.strftime("%Y-%m-%d")}
 
 
@@ -109,7 +110,7 @@ def _steps(n) -> str:
 
 
 def _wall(s) -> str:
-    return f"{s:.2g}" if s < 10 else f"{s:.0f}"
+    return _g(s) if s < 10 else f"{s:.0f}"
 
 
 def run_table(rows: dict) -> list:
@@ -129,23 +130,31 @@ def run_table(rows: dict) -> list:
 
 def _what(r) -> str:
     """The verdict table's last column: each failed criterion with its value against its
-    limit and what it says; for a run that deploys, when it was out for good and its swing."""
+    limit and what it says (one the verdict does not require marked so); for a run that
+    deploys, when it was out for good, its swing and slack."""
     crits = {c["name"]: c for c in r["criteria"]}
     bad = [c for c in r["criteria"] if c["passed"] is False]
-    if not bad:
+    if not [c for c in bad if c.get("required", True)]:
         dep, swing = crits["deployed"], crits.get("swing", {})
         when = re.search(r"out for good from t = ([0-9.]+) s", dep["detail"])
         text = f"- (out for good from {float(when[1]):.3g} s" if when else "- ("
         if swing.get("passed"):
             text += f"; swing {_g(swing['value'])} rad"
-        return text + f"; slack {_g(crits['slack']['value'])})"
+        if crits.get("overstrain", {}).get("passed"):
+            text += f"; utilisation {_g(crits['overstrain']['value'])}"
+        slack = crits["slack"]
+        note = ", not required" if slack["passed"] is False else ""
+        return text + f"; slack {_g(slack['value'])}{note})"
     parts = []
     for c in bad:
         unit = "" if c["units"] == "1" else f" {c['units']}"
-        text = f"{c['name']} {_g(c['value'])}{unit} (limit {c['limit']:g}{unit})"
+        extra = "" if c.get("required", True) else ", not required"
+        text = f"{c['name']} {_g(c['value'])}{unit} (limit {c['limit']:g}{unit}{extra})"
         back = re.search(r"fell back ([0-9.e+]+) m", c["detail"])
         if c["name"] == "recoil" and back:
             text += f": a tip {float(back[1]):.3g} m back"
+        if c["name"] == "overstrain" and c["time"] == c["time"]:
+            text += f" from {c['time']:.2g} s"
         parts.append(text)
     return ", ".join(parts)
 

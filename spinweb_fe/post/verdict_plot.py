@@ -23,8 +23,8 @@ from spinweb_fe.post.judged import history_checked, judged
 from spinweb_fe.record import verdict
 from spinweb_fe.record.energy import energy_balance, energy_reference
 
-#: colours of a criterion that passed, failed, does not apply
-STATUS_COLOUR = {True: "tab:green", False: "tab:red", None: "0.35"}
+#: colours of a criterion that passed, failed, does not apply; failed but not required
+STATUS_COLOUR = {True: "tab:green", False: "tab:red", None: "0.35", "optional": "tab:orange"}
 LIMIT_STYLE = {"color": "0.2", "ls": "--", "lw": 1.0}
 
 
@@ -63,13 +63,13 @@ def _limit(ax, y, text):
                 va="bottom", color="0.2")
 
 
-def _tip_ratio(j):
+def _tip_radius(j):
     t = np.asarray(j.history["time"], float)
     return t, verdict.tip_radius(j.history, j.hub_radius)
 
 
 def _deployed(ax, j, colour, label, first):
-    t, radius = _tip_ratio(j)
+    t, radius = _tip_radius(j)
     frac = j.limits["deployed_fraction"]
     spread(ax, t, radius / j.reach, color=colour, label=label)
     if first:
@@ -83,7 +83,7 @@ def _deployed(ax, j, colour, label, first):
 
 
 def _recoil(ax, j, colour, label, first):
-    t, radius = _tip_ratio(j)
+    t, radius = _tip_radius(j)
     back = (np.maximum.accumulate(radius, axis=0) - radius) / (j.reach - j.hub_radius)
     spread(ax, t, back, color=colour, label=label)
     if first:
@@ -110,7 +110,7 @@ def _overstrain(ax, j, colour, label, first):
 
 def _swing(ax, j, colour, label, first):
     """phi over the run, the window judged shaded, the limit about the window's mid."""
-    t, radius = _tip_ratio(j)
+    t, radius = _tip_radius(j)
     phi = np.asarray(j.history["arm_angle"], float).reshape(len(t), -1)
     spread(ax, t, phi, color=colour, label=label)
     t_dep = verdict.deploy_time(t, radius, j.reach, j.limits["deployed_fraction"])
@@ -200,6 +200,8 @@ HEADINGS = {"device_tension": "device: line tension", "device_speed": "device: p
 def criterion_text(c) -> str:
     """'deployed: pass 0.979 (limit 0.8)' or '... FAIL ..., first at t = 2 s'."""
     word = {True: "pass", False: "FAIL", None: "n/a"}[c.passed]
+    if c.passed is False and not getattr(c, "required", True):
+        word = "fail (not required)"
     if c.passed is None:
         return f"{c.name}: n/a"
     text = f"{c.name}: {word} {c.value:.3g} (limit {c.limit:.3g})"
@@ -215,8 +217,9 @@ def _title(ax, name, j, single):
     if not single or not crits:
         ax.set_title(HEADINGS.get(name, " / ".join(SHOWS[name]) or name), fontsize=9)
         return
-    worst = False if any(c.passed is False for c in crits) else (
-        True if any(c.passed for c in crits) else None)
+    failed = [c for c in crits if c.passed is False]
+    worst = False if any(getattr(c, "required", True) for c in failed) else (
+        "optional" if failed else True if any(c.passed for c in crits) else None)
     ax.set_title("\n".join(criterion_text(c) for c in crits), fontsize=8.5,
                  color=STATUS_COLOUR[worst])
 
@@ -257,7 +260,9 @@ def draw(runs, names, labels, title=None):
             colour = f"C{k % 10}"
             DRAW[name](ax, j, colour, tag, k == 0)
             for crit in SHOWS[name]:
-                _mark(ax, j.criterion(crit), "tab:red" if single else colour)
+                c = j.criterion(crit)
+                mark = STATUS_COLOUR[False if getattr(c, "required", True) else "optional"]
+                _mark(ax, c, mark if single else colour)
     for ax, name in zip(axes.flat, names):
         _title(ax, name, runs[0], single)
         ax.grid(alpha=0.3)
