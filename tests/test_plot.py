@@ -106,7 +106,7 @@ def test_the_verdict_panels_show_limits_and_first_failures():
     assert by["overstrain"].time == pytest.approx(math.asin(1.2 ** -0.125) / math.pi, abs=1e-3)
     assert by["recoil"].time == pytest.approx(0.5 + 4.5 / 14.0, abs=1e-3)
     names = panel_names(j)
-    assert names == ["deployed", "recoil", "overstrain", "audits"]  # no slack frames, no swing
+    assert names == ["reach", "fallback", "utilisation", "audits"]  # no slack frames, no swing
     fig = draw([j], names, ["synthetic"])
     img = rgb(fig)
     dep, rec, over, aud = fig.axes[:4]
@@ -151,7 +151,7 @@ def test_plot_verdict_of_a_run(tmp_path):
     j = load_judged(out / "results.h5")
     assert j.slack is not None and len(j.slack[0]) == 5
     assert j.slack[1][-1] == pytest.approx(j.criterion("slack").value, abs=1e-12)
-    assert "slack" in panel_names(j) and "overstrain" in panel_names(j)
+    assert "slack_share" in panel_names(j) and "utilisation" in panel_names(j)
     png = tmp_path / "v.png"
     assert main(["plot", str(out / "results.h5"), "-o", str(png), "--panels", "verdict"]) == 0
     img = np.asarray(Image.open(png).convert("RGB"), dtype=float) / 255.0
@@ -197,7 +197,7 @@ def test_the_sweep_summary_has_no_empty_panel_and_colours_the_verdicts(tmp_path)
     """A grid sweep whose runs never deploy (deploy_time NaN): its panel goes to the
     verdict's severity; passing runs green, failing red."""
     from spinweb_fe.sweep.report import _panels, plot_summary
-    from spinweb_fe.sweep.run import load_sweep
+    from spinweb_fe.sweep.run import PLOTTED, load_sweep
 
     src = tmp_path / "s.toml"
     src.write_text(f'title = "t"\nbase = "{ROOT / "cases" / "paper_free_arms.toml"}"\n'
@@ -207,8 +207,8 @@ def test_the_sweep_summary_has_no_empty_panel_and_colours_the_verdicts(tmp_path)
              "final_hub_omega_rad_s": 20.0 - i, "max_tension_N": 3e4 + 1e3 * i,
              "recoiled": float(i == 3), "passed": float(i < 2), "severity": 0.6 + 0.3 * i}
             for i in range(4)]
-    assert _panels(rows) == ["peak_hub_torque_Nm", "final_hub_omega_rad_s", "max_tension_N",
-                             "severity"]
+    assert "deploy_time_s" in PLOTTED and len(PLOTTED) == 4
+    assert _panels(rows) == [m for m in PLOTTED if m != "deploy_time_s"] + ["severity"]
     png = tmp_path / "summary.png"
     plot_summary(sweep, rows, png)
     img = np.asarray(Image.open(png).convert("RGB"), dtype=float).reshape(-1, 3) / 255.0

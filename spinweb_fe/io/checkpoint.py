@@ -27,6 +27,7 @@ and version 2 files (before the free hub) are refused with a one-line reason.
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
 import time
 from dataclasses import dataclass
@@ -39,7 +40,7 @@ from spinweb_fe import __version__
 from spinweb_fe.errors import InputError
 from spinweb_fe.fe.state import State, from_arrays, to_arrays
 from spinweb_fe.io.h5 import open_h5
-from spinweb_fe.io.safe import describe, kind, make_room
+from spinweb_fe.io.safe import describe, kind, write_new
 
 CHECKPOINT_NAME = "checkpoint.h5"
 CHECKPOINT_FORMAT = "spinweb-checkpoint"
@@ -109,11 +110,15 @@ class Checkpoint:
 def write_checkpoint(path, ck: Checkpoint, on_error=None) -> Path:
     """Write ``ck`` to ``path`` atomically (temporary file, then ``os.replace``).
 
+    The HDF5 file is made in memory and its bytes written to the temporary file: a full
+    disk fails that write with an OSError, never HDF5's own flush at the file's close (which
+    crashed the process, a segmentation fault, when the disk filled there).
+
     Parameters
     ----------
     on_error : callable() or None
-        Called when a write fails, before the temporary file is closed and removed (the
-        run's disk guard frees its reserve there, so that the close can succeed).
+        Called when the write fails, after the temporary file is removed (the run's disk
+        guard frees its reserve there, for the run's last writes).
 
     Returns
     -------
@@ -121,19 +126,16 @@ def write_checkpoint(path, ck: Checkpoint, on_error=None) -> Path:
         The checkpoint file.
     """
     path = Path(path)
-    tmp = make_room(path.with_name(path.name + ".tmp"))
-    h5 = h5py.File(tmp, "x")  # O_EXCL: made new, never through a link
-    try:
+    tmp = path.with_name(path.name + ".tmp")
+    image = io.BytesIO()
+    with h5py.File(image, "w") as h5:
         _fill(h5, ck)
-        h5.close()
+    try:
+        write_new(tmp, image.getbuffer())  # made new, never through a link
         os.replace(tmp, path)
     except BaseException:
         if on_error is not None:
             on_error()
-        try:
-            h5.close()
-        except Exception:  # noqa: BLE001 - the first error is the one to report
-            pass
         tmp.unlink(missing_ok=True)
         raise
     return path

@@ -58,7 +58,7 @@ def _growth(ds, arr) -> int:
     return 8 * (new_chunks * c * per_row + len(arr) * per_row)
 
 
-def _cause(exc) -> str:
+def write_failure(exc) -> str:
     """One line for a failed write: 'no space left on device', 'file too large' or 'I/O
     error: ...'."""
     if no_space(exc):
@@ -130,7 +130,7 @@ class ResultWriter(Recorder):
                 except (OSError, RuntimeError):
                     pass
                 self.h5 = None
-            raise RunError(f"cannot write to {self.dir}: {_cause(exc)}") from None
+            raise RunError(f"cannot write to {self.dir}: {write_failure(exc)}") from None
         self.flushed = (0, 0)  # (history rows, frames) on disk
 
     def _create(self, case, dt, write_frames):
@@ -391,7 +391,7 @@ class ResultWriter(Recorder):
         except (OSError, RuntimeError) as again:
             log.error("could not flush results.h5 after the failed write: %s",
                       str(again).splitlines()[0])
-        raise RunError(f"cannot write to {self.dir}: {_cause(exc)} (results.h5 keeps the "
+        raise RunError(f"cannot write to {self.dir}: {write_failure(exc)} (results.h5 keeps the "
                        f"{rows} history rows and {frames} frames written before)",
                        time=t) from None
 
@@ -437,4 +437,4 @@ class ResultWriter(Recorder):
                 h5.attrs["wall_time_s"] = time.perf_counter() - self.t0
                 h5.close()
             except (OSError, RuntimeError) as exc:  # HDF5's last flush: one line, not its own
-                raise RunError(f"cannot write to {self.dir}: {_cause(exc)}") from None
+                raise RunError(f"cannot write to {self.dir}: {write_failure(exc)}") from None

@@ -37,13 +37,13 @@ def load_judged(path):
 def panel_names(j) -> list:
     """The panels a judged run has data for, in order."""
     h = j.history
-    names = ["deployed", "recoil"]
+    names = ["reach", "fallback"]
     if j.slack is not None:
-        names.append("slack")
+        names.append("slack_share")
     if "utilisation" in h:
-        names.append("overstrain")
+        names.append("utilisation")
     if (c := j.criterion("swing")) is not None and c.passed is not None:
-        names.append("swing")
+        names.append("phi")
     if "brake_tension" in h:
         names += ["device_tension", "device_speed"]
     if "kinetic_energy" in h and "angular_momentum" in h:
@@ -187,13 +187,13 @@ def _audits(ax, j, colour, label, first):
     ax.set_ylabel("balance error / scale")
 
 
-DRAW = {"deployed": _deployed, "recoil": _recoil, "slack": _slack, "overstrain": _overstrain,
-        "swing": _swing, "device_tension": _device_tension, "device_speed": _device_speed,
-        "audits": _audits}
-#: the criteria each panel shows (its title's verdict)
-SHOWS = {"deployed": ("deployed",), "recoil": ("recoil",), "slack": ("slack",),
-         "overstrain": ("overstrain",), "swing": ("swing",), "device_tension": (),
-         "device_speed": (), "audits": ("energy", "momentum")}
+#: panel -> (how it is drawn, the criteria its title judges: record/criteria.py's names)
+PANELS = {"reach": (_deployed, ("deployed",)), "fallback": (_recoil, ("recoil",)),
+          "slack_share": (_slack, ("slack",)), "utilisation": (_overstrain, ("overstrain",)),
+          "phi": (_swing, ("swing",)), "device_tension": (_device_tension, ()),
+          "device_speed": (_device_speed, ()), "audits": (_audits, ("energy", "momentum"))}
+DRAW = {name: draw for name, (draw, _) in PANELS.items()}
+SHOWS = {name: shows for name, (_, shows) in PANELS.items()}
 HEADINGS = {"device_tension": "device: line tension", "device_speed": "device: payout speed"}
 
 

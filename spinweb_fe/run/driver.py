@@ -23,7 +23,7 @@ from spinweb_fe.errors import InputError, RunError, RunInterrupted
 from spinweb_fe.io.checkpoint import (CHECKPOINT_NAME, Checkpoint, checkpoint_bytes,
                                       write_checkpoint)
 from spinweb_fe.io.folder import Aside, FolderLock, busy, check_writable, holder
-from spinweb_fe.io.results import ResultWriter
+from spinweb_fe.io.results import ResultWriter, write_failure
 from spinweb_fe.io.space import DiskGuard
 from spinweb_fe.record import verdict
 from spinweb_fe.record.recorders import Recorder
@@ -60,8 +60,7 @@ class Checkpointer(Recorder):
         try:
             write_checkpoint(self.path, ck, on_error=self.guard and self.guard.release)
         except (OSError, RuntimeError) as exc:
-            raise RunError(f"cannot write {self.path}: {str(exc).splitlines()[0]}",
-                           time=t) from None
+            raise RunError(f"cannot write {self.path}: {write_failure(exc)}", time=t) from None
 
 
 class _FirstFlush(Recorder):
