@@ -217,7 +217,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if axis is not None:
             touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate, None, hub_angle[0])
         else:
-            touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs)
+            touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs, hub_angle[0])
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)

@@ -31,7 +31,8 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in, swept_boxes
+from spinweb_fe.fe.contact.bounds import ROUND, no_motion
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in
 from spinweb_fe.fe.contact.crossing import pair_distances
 from spinweb_fe.fe.layout import AUDIT, named
 from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
@@ -134,21 +135,22 @@ class CrossingAudit(Feature):
         kept = ~sorted_in(code, self.ignored)
         self.pairs = pairs[kept]
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
-        theta = float(state.hub.angle[0])
+        theta = self._theta = float(state.hub.angle[0])
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
                                -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
-        box = np.zeros((len(self.elem_nodes), 6))
-        swept_boxes(self.elem_nodes, active, pos, pos, box)
+        # each pair's certificate: its distance now, less the round-off of computing it
+        lb = self.pair_dist - ROUND * float(np.max(np.abs(pos), initial=0.0))
         self._rows = rows or self._rows
-        self._make(active, ref, np.array(state.coil.front, np.int64), box)
+        self._make(active, ref, np.array(state.coil.front, np.int64), lb)
         self.rebuilds += 1
 
-    def _make(self, active, ref, fronts, box):
+    def _make(self, active, ref, fronts, lb):
         old = self.kernel_data
         pos0 = old.pos0 if old is not None else np.zeros((len(ref), 3))
+        motion = old.motion if old is not None else no_motion(len(ref), len(self.elem_nodes))
         self.kernel_data = AuditKernel(
-            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, box,
+            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, lb, motion,
             self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
@@ -166,7 +168,7 @@ class CrossingAudit(Feature):
         elif k is None:
             self.build(state, rows)
         elif k.row_count.shape[0] < rows:  # (built before, with room for fewer rows)
-            self._make(k.active, k.ref, k.fronts, k.box)
+            self._make(k.active, k.ref, k.fronts, k.lb)
 
     def kernel(self, hooks: dict):
         return self.kernel_data
@@ -203,7 +205,9 @@ class CrossingAudit(Feature):
         positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
         the list went stale (scripted motions: tests)."""
         self.kernel_data.pos0[:] = pos0
-        audit_step(self.kernel_data, state.node_pos, float(state.hub.angle[0]), t0, dt,
+        self.kernel_data.motion.theta[0] = self._theta  # the hub's angle at the step's start
+        self._theta = float(state.hub.angle[0])
+        audit_step(self.kernel_data, state.node_pos, self._theta, t0, dt,
                    np.asarray(state.coil.front, np.int64))
         self.service(state)
 
@@ -216,15 +220,16 @@ class CrossingAudit(Feature):
 
     def memory(self) -> dict:
         """The count, the log, and the list as the step loop holds it (its pairs, those
-        left out, the positions it was built at, its fronts and boxes), so that a restart
-        tests the same pairs as the run would have, and rebuilds where it would have."""
+        left out, the positions it was built at, its fronts, each pair's certificate), so
+        that a restart tests the same pairs as the run would have, and rebuilds where it
+        would have."""
         k = self.kernel_data
         out = {"count": np.array([self.count], np.int64), **self.table(),
                "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds])}
         if k is not None:
             out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
                        codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
-                       box=k.box)
+                       lb=k.lb)
         return {name: np.array(v, copy=True) for name, v in out.items()}
 
     def restore(self, memory: dict) -> None:
@@ -242,7 +247,7 @@ class CrossingAudit(Feature):
         self._restored = (np.asarray(memory["active"], np.int8),
                           np.asarray(memory["ref"], np.float64).reshape(-1, 3),
                           np.asarray(memory["fronts"], np.int64),
-                          np.asarray(memory["box"], np.float64).reshape(-1, 6))
+                          np.asarray(memory["lb"], np.float64))
 
 
 #: units and meaning of the /crossings table's columns
