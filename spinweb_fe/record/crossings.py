@@ -5,9 +5,12 @@ The step loop tests each step itself (fe.contact.touch: after each step, the can
 pairs with the exact continuous test of :func:`spinweb_fe.fe.contact.crossing.pair_crossings`; the
 nodes move on straight lines over a step, as the central-difference update moves them), and
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
-phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
-since the last build (distances do not change in a rigidly turning frame, so the spin
-itself never forces a rebuild), or when a held level went free. Which pairs take part:
+phase with a skin, rebuilt when a node has moved more than 3/4 of the skin since the last
+build, in a frame that turns with the web (fe.contact.bounds: distances do not change in a
+rigidly turning frame, so the spin itself never forces a rebuild), or when a held level
+went free. Between builds each pair keeps a certificate, a proven least distance lowered by
+what each step could close (fe.contact.bounds), and only the pairs whose certificate
+cannot rule a meeting out are tested exactly. Which pairs take part:
 
 - every element, the coil's held ones and the hub's tied ones too (released cables sweep
   over the coil and through the hub's frame: a list of released material alone let them
@@ -106,6 +109,7 @@ class CrossingAudit(Feature):
         self._codes = None
         self._rows = rows
         self._restored = None
+        self.frame = np.zeros(1)  # the angle of the frame that follows the web [rad]
         self.kernel_data = None
 
     def _code(self, pairs):
@@ -135,7 +139,7 @@ class CrossingAudit(Feature):
         kept = ~sorted_in(code, self.ignored)
         self.pairs = pairs[kept]
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
-        theta = self._theta = float(state.hub.angle[0])
+        theta = float(self.frame[0])
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
                                -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
@@ -150,7 +154,8 @@ class CrossingAudit(Feature):
         pos0 = old.pos0 if old is not None else np.zeros((len(ref), 3))
         motion = old.motion if old is not None else no_motion(len(ref), len(self.elem_nodes))
         self.kernel_data = AuditKernel(
-            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, lb, motion,
+            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, self.frame,
+            lb, motion,
             self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
@@ -205,9 +210,8 @@ class CrossingAudit(Feature):
         positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
         the list went stale (scripted motions: tests)."""
         self.kernel_data.pos0[:] = pos0
-        self.kernel_data.motion.theta[0] = self._theta  # the hub's angle at the step's start
-        self._theta = float(state.hub.angle[0])
-        audit_step(self.kernel_data, state.node_pos, self._theta, t0, dt,
+        self.kernel_data.motion.theta[0] = self.frame[0]
+        audit_step(self.kernel_data, state.node_pos, t0, dt,
                    np.asarray(state.coil.front, np.int64))
         self.service(state)
 
@@ -225,7 +229,8 @@ class CrossingAudit(Feature):
         would have."""
         k = self.kernel_data
         out = {"count": np.array([self.count], np.int64), **self.table(),
-               "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds])}
+               "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds]),
+               "frame": self.frame}
         if k is not None:
             out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
                        codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
@@ -238,6 +243,7 @@ class CrossingAudit(Feature):
             self.log[k] = list(np.asarray(memory[k]).tolist())
         self.ignored = np.asarray(memory["ignored"], np.int64)
         self.rebuilds = int(np.asarray(memory.get("rebuilds", [0])).ravel()[0])
+        self.frame[:] = np.asarray(memory.get("frame", [0.0]), np.float64).ravel()[:1]
         if "pairs" not in memory:  # (a checkpoint of the audit before its list was kept)
             return
         self.pairs = np.asarray(memory["pairs"], np.int64).reshape(-1, 2)

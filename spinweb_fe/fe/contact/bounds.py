@@ -5,10 +5,9 @@ motion could have closed (issue #42).
 Each listed pair keeps ``lb``, a proven lower bound of its elements' distance at the step's
 start (their exact distance when the list was built or the pair was last tested, less
 what they could have closed since). Over a step each node moves on a straight line
-(x(t) = x_n + t (x_{n+1} - x_n)); seen in the hub's frame, turning about +z by the hub's
-angle theta(t) = theta_n + t dtheta (any rigid frame keeps distances; this one makes the
-material that turns with the hub stand still), a node's displacement from its place at
-the step's start is at most
+(x(t) = x_n + t (x_{n+1} - x_n)); seen in a frame turning about +z by theta(t) = theta_n +
+t dtheta (any rigid frame keeps distances), a node's displacement from its place at the
+step's start is at most
 
     m_i = |y_i(1) - y_i(0)| + rho_i (dtheta^2 / 8 + |dtheta|^3 / 3) + |dtheta| |x_{n+1} - x_n| / 4,
 
@@ -21,6 +20,12 @@ the largest |y_i(1) - y_i(0) - (y_j(1) - y_j(0))| + dev_i + dev_j over an end i 
 an end j of the other (:func:`pair_motion`). A pair whose bound less that stays above the
 least separation cannot meet during the step, and its bound is lowered by it; the others
 are tested exactly and get their exact distance at the step's end as their new bound.
+
+The frame follows the web, not the hub: each step turns it by the rotation that fits the
+nodes' displacements best (dtheta = sum(x dy - y dx) / sum(x^2 + y^2)), so that a web
+spinning at its own rate stands as still in it as the held coil does while it turns with
+the hub (a deployed web that turns 8 rad/s slower than a driven hub moves its tips 400 m/s
+through the hub's frame: the list would be rebuilt every 20 steps).
 """
 
 from __future__ import annotations
@@ -37,11 +42,12 @@ ROUND = 1e-13
 
 
 class StepMotion(NamedTuple):
-    """What the nodes moved over the step, in the hub's frame (:func:`step_motion`).
+    """What the nodes moved over the step, in the frame that follows the web
+    (:func:`step_motion`).
 
     dy (n, 3) [m]: the chord of each node's path; dev (n,) [m]: the path's largest
     departure from its chord; elem (m,) [m]: each element's largest displacement bound
-    (the larger of its ends' |dy| + dev); theta (2,) [rad]: the hub's angle at the step's
+    (the larger of its ends' |dy| + dev); theta (2,) [rad]: the frame's angle at the step's
     start and end; scale (1,) [m]: the largest coordinate magnitude at either end (the
     least separation and the round-off follow it).
     """
@@ -73,10 +79,17 @@ def no_motion(n_nodes: int, n_elems: int) -> StepMotion:
 
 @njit(cache=True)
 def step_motion(mo, elem_nodes, active, pos0, pos1):
-    """Fill ``mo`` (a :class:`StepMotion` whose ``theta`` holds the hub's angles at the
-    step's start and end) for the step from ``pos0`` to ``pos1``; ``elem`` only for the
-    ``active`` elements."""
-    th0, th1 = mo.theta[0], mo.theta[1]
+    """Fill ``mo`` (a :class:`StepMotion` whose ``theta[0]`` holds the frame's angle at the
+    step's start) for the step from ``pos0`` to ``pos1``: the frame's turn that fits the
+    displacements best, then each node's and each ``active`` element's motion in it."""
+    num, den = 0.0, 0.0
+    for i in range(pos0.shape[0]):
+        x0, y0 = pos0[i, 0], pos0[i, 1]
+        num += x0 * (pos1[i, 1] - y0) - y0 * (pos1[i, 0] - x0)
+        den += x0 * x0 + y0 * y0
+    th0 = mo.theta[0]
+    th1 = th0 + (num / den if den > 0.0 else 0.0)
+    mo.theta[1] = th1
     dth = th1 - th0
     c0, s0, c1, s1 = math.cos(th0), math.sin(th0), math.cos(th1), math.sin(th1)
     turn = dth * dth / 8.0 + abs(dth) ** 3 / 3.0

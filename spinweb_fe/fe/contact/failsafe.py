@@ -60,7 +60,6 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
                                        (inv_mass == 0.0) | ck.follow, ck.follow)
     else:
         ck.follow[:] = False
-        ck.cert.motion.theta[1] = theta
         step_motion(ck.cert.motion, ck.elem_nodes, ck.active, ck.pos0, pos)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,

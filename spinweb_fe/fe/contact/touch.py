@@ -14,7 +14,8 @@ a scene without them compiles and runs as before):
                  (the motion the step ends with), and whether its list is still valid
 
 The loop stops after a step (status :data:`SERVICE`) when the audit's list has gone stale (a
-node moved more than :data:`REBUILD` of the skin in the hub's frame since the build, or a
+node moved more than :data:`REBUILD` of the skin since the build, in the frame that follows
+the web (fe.contact.bounds), or a
 held level went free) or its log is nearly full: Python then rebuilds the list
 (record.crossings) and goes on. A list is valid while no node has moved more than the skin:
 a pair that was not listed was more than twice the skin apart (their boxes, widened by the
@@ -45,14 +46,14 @@ SERVICE = 2
 #: crossings logged per step at most (the count has them all)
 LOG_PER_STEP = 64
 #: the list is rebuilt after a step that left a node this share of the skin from its place
-#: at the build (hub's frame)
+#: at the build (in the frame that follows the web)
 REBUILD = 0.75
 #: passes of the contact's fail-safe per step at most: the first, and one after each
 #: reaction of the hub (its tied and held nodes placed again, fe.step.settle)
 REACTIONS = 4
 #: a step that takes a node beyond this share of the skin is tested on a list of its own
 #: (the rest of the skin covers the chord of a turning frame: a node at radius rho strays
-#: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the hub by
+#: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the frame by
 #: dtheta and moves the node by u in it, microns at 25 rad/s)
 WIDE = 0.9
 
@@ -63,8 +64,10 @@ class AuditKernel(NamedTuple):
     elem_nodes (m, 2) int64; pairs (P, 2) int64: the candidate list; ignored (I,) int64:
     sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) int8:
     the broad phase's (1, or fe.contact.broad.RIGID for an element both of whose ends move
-    with the hub); ref (n, 3) [m]: the nodes at the build, in the hub's frame then; fronts
-    (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the step; lb (P,)
+    with the hub); ref (n, 3) [m]: the nodes at the build, in the frame then; fronts
+    (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the step; frame (1,)
+    [rad]: the angle of the frame that follows the web (fe.contact.bounds), in which ``ref``
+    and the motions are measured; lb (P,)
     [m]: each pair's proven least distance at the step's start (fe.contact.bounds); motion:
     what the nodes moved over the step (fe.contact.bounds.StepMotion); skin [m]; count (1,)
     int64: crossings so far; log_time [s], log_a, log_b, log_sign (L,): the log, n_log (1,)
@@ -79,6 +82,7 @@ class AuditKernel(NamedTuple):
     ref: np.ndarray
     fronts: np.ndarray
     pos0: np.ndarray
+    frame: np.ndarray
     lb: np.ndarray
     motion: StepMotion
     skin: float
@@ -150,16 +154,16 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, lb, mo, test, out_t, out_
 
 
 @njit(cache=True)
-def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
-    """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]; the
-    hub at ``theta`` [rad] now), counted and logged (``fresh``: ``au.motion`` already holds
+def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
+    """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]),
+    counted and logged (``fresh``: ``au.motion`` already holds
     this step's motion; ``clean``: the contact's fail-safe tested this list on this
     motion and found no crossing, so only the certificates are kept up). Returns True if
     the list needs a rebuild (or the log a flush) before the next step."""
     mo = au.motion
     if not fresh:
-        mo.theta[1] = theta
         step_motion(mo, au.elem_nodes, au.active, au.pos0, pos)
+    theta = au.frame[0] = mo.theta[1]  # the frame that follows the web, now
     moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))
     au.moved[0] = moved
     k = au.n_log[0]
@@ -188,12 +192,12 @@ def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
 
 @njit(inline="always")
 def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, theta=0.0):
-    """Step start: x_n and the hub's angle ``theta`` [rad] kept, the contact's penalty forces
-    (``rate``: a fixed axis's rate, ``body``: a free hub's state, whose velocities and pose
-    are kept for the fail-safe's reaction and its zones)."""
+    """Step start: x_n and the frame's angle kept, the contact's penalty forces (``rate``,
+    ``theta``: a fixed axis's rate and angle [rad], ``body``: a free hub's state, whose
+    velocities and pose are kept for the fail-safe's reaction and its zones)."""
     if audit is not None:
         audit.pos0[:] = pos
-        audit.motion.theta[0] = theta
+        audit.motion.theta[0] = audit.frame[0]
     elif contact is not None:
         contact.pos0[:] = pos
     if contact is not None:
@@ -215,9 +219,9 @@ def touch_row(audit, contact, k):
 
 
 @njit(inline="always")
-def touch_end(audit, pos, theta, t0, dt, fronts, fresh=False, clean=False):
+def touch_end(audit, pos, t0, dt, fronts, fresh=False, clean=False):
     """Step end, after the contact's fail-safe (fe.step.settle; ``fresh``, ``clean`` as
     :func:`audit_step` takes them): the audit. True: stop for Python."""
     if audit is not None:
-        return audit_step(audit, pos, theta, t0, dt, fronts, fresh, clean)
+        return audit_step(audit, pos, t0, dt, fronts, fresh, clean)
     return False
