@@ -36,7 +36,7 @@ import numpy as np
 
 from spinweb_fe.fe.contact.bounds import ROUND, no_motion
 from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in
-from spinweb_fe.fe.contact.crossing import pair_distances
+from spinweb_fe.fe.contact.distance import pair_distances
 from spinweb_fe.fe.layout import AUDIT, named
 from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
 from spinweb_fe.record.feature import Feature, copied
@@ -51,6 +51,14 @@ SKIN_PER_ELEMENT = 0.2
 TOUCH = 1e-3
 #: room of the step loop's log (crossings logged between two calls at most)
 LOG_ROOM = 4096
+#: the skin grows by this factor at a rebuild that came sooner than :data:`SOON` steps after
+#: the last (a fast web uses up a thin skin in a few steps), and shrinks by it back towards
+#: the starting skin when a list lasts :data:`LATE` steps; at most :data:`SKIN_GROWTH` times
+#: the starting skin, and not while the list holds :data:`PAIRS_MAX` pairs per element
+SKIN_STEP = 1.5
+SOON, LATE = 100, 800
+SKIN_GROWTH = 8.0
+PAIRS_MAX = 60
 
 
 def default_skin(model) -> float:
@@ -100,6 +108,8 @@ class CrossingAudit(Feature):
         self.model = model
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.skin = float(skin) if skin is not None else default_skin(model)
+        self.base_skin = self.skin  # the skin adapts to the web's speed (:meth:`adapt`)
+        self._built_at = 0
         self.touch = float(touch)
         self.count, self.rebuilds = 0, 0
         self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
@@ -132,7 +142,7 @@ class CrossingAudit(Feature):
         # (codes ascend: the broad phase lists pairs in code order; merges, not hashes)
         entering = ~sorted_in(code, self._codes) if self._codes is not None else \
             np.ones(len(code), bool)
-        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.skin])]
+        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.base_skin])]
         new = code[entering & (dist <= self.touch)]
         self.ignored = np.union1d(staying, new) if len(new) else staying
         self._codes = code
@@ -147,6 +157,7 @@ class CrossingAudit(Feature):
         lb = self.pair_dist - ROUND * float(np.max(np.abs(pos), initial=0.0))
         self._rows = rows or self._rows
         self._make(active, ref, np.array(state.coil.front, np.int64), lb)
+        self._built_at = int(state.step[0])
         self.rebuilds += 1
 
     def _make(self, active, ref, fronts, lb):
@@ -196,8 +207,24 @@ class CrossingAudit(Feature):
             self.log["direction"].extend(k.log_sign[:n].tolist())
             k.n_log[0] = 0
         self.count = int(k.count[0])
-        if k.moved[0] > REBUILD * self.skin or not np.array_equal(k.fronts, state.coil.front):
+        moved = k.moved[0] > REBUILD * self.skin
+        if moved or not np.array_equal(k.fronts, state.coil.front):
+            if moved:
+                self.adapt(int(state.step[0]))
             self.build(state)
+
+    def adapt(self, step: int) -> None:
+        """The skin for the next list, from how long this one lasted (a rebuild after
+        ``step - last build`` steps): wider for a web that used it up quickly, back towards
+        the starting skin for one that did not. Every skin gives the same crossings: the
+        skin sets only how many pairs each step looks at and how often the list is built."""
+        steps = step - self._built_at
+        active = max(1, int(np.count_nonzero(self.kernel_data.active)))
+        if (steps < SOON and self.skin < SKIN_GROWTH * self.base_skin
+                and len(self.pairs) < PAIRS_MAX * active):
+            self.skin = min(SKIN_STEP * self.skin, SKIN_GROWTH * self.base_skin)
+        elif steps > LATE and self.skin > self.base_skin:
+            self.skin = max(self.skin / SKIN_STEP, self.base_skin)
 
     take = service
 
@@ -230,7 +257,8 @@ class CrossingAudit(Feature):
         k = self.kernel_data
         out = {"count": np.array([self.count], np.int64), **self.table(),
                "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds]),
-               "frame": self.frame}
+               "frame": self.frame, "skin": np.array([self.skin]),
+               "built_at": np.array([self._built_at])}
         if k is not None:
             out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
                        codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
@@ -244,6 +272,8 @@ class CrossingAudit(Feature):
         self.ignored = np.asarray(memory["ignored"], np.int64)
         self.rebuilds = int(np.asarray(memory.get("rebuilds", [0])).ravel()[0])
         self.frame[:] = np.asarray(memory.get("frame", [0.0]), np.float64).ravel()[:1]
+        self.skin = float(np.asarray(memory.get("skin", [self.skin])).ravel()[0])
+        self._built_at = int(np.asarray(memory.get("built_at", [0])).ravel()[0])
         if "pairs" not in memory:  # (a checkpoint of the audit before its list was kept)
             return
         self.pairs = np.asarray(memory["pairs"], np.int64).reshape(-1, 2)

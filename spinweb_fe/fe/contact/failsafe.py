@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.contact.bounds import pair_motion, step_motion
-from spinweb_fe.fe.contact.crossing import SEP, apart, closest_points, pair_crossings
+from spinweb_fe.fe.contact.crossing import SEP, apart, pair_crossings
+from spinweb_fe.fe.contact.distance import closest_points
 from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
                                             impulse_work)
 from spinweb_fe.fe.contact.penalty import AGAIN, FRICTION, IMPULSES, IN_CONTACT, LEFT, TAKEN
@@ -131,21 +132,23 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     for rnd in range(first, rounds):
         now = np.zeros(n_nodes, np.bool_)
         left = 0
+        certified = cert is not None and rnd == 0
         if rnd >= 1:
-            if cert is not None:  # the certificates of the motion as it now stands
-                step_motion(cert.motion, elem_nodes, cert.active, pos0, pos1)
             if 8 * np.count_nonzero(moved) < n_nodes:  # the pairs of the nodes the pass moved
                 ensure_adjacency(adj, pairs, elem_nodes)
                 todo = pairs_of(adj, moved)
-            else:  # most nodes moved (the hub's, placed again): the whole list
+            else:  # most nodes moved (the hub's, placed again): the whole list, certified
                 todo = np.arange(pairs.shape[0])
+                if cert is not None:  # (the certificates of the motion as it now stands)
+                    step_motion(cert.motion, elem_nodes, cert.active, pos0, pos1)
+                    certified = True
         for p in todo:
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
             if rnd >= 1 and not (moved[a] or moved[b] or moved[c] or moved[d]):
                 continue
-            if cert is not None:
+            if certified:
                 bound = cert.lb[p] - cert.motion.elem[e] - cert.motion.elem[g]
                 if bound > sep or cert.lb[p] - pair_motion(cert.motion, a, b, c, d) > sep:
                     continue

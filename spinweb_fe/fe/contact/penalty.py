@@ -47,7 +47,7 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.contact.bounds import ROUND, Certified
-from spinweb_fe.fe.contact.crossing import closest_nodes
+from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import HubStart
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)

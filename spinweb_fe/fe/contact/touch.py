@@ -36,8 +36,8 @@ from numba import njit
 
 from spinweb_fe.fe.contact.bounds import ROUND, StepMotion, pair_motion, step_motion
 from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
-from spinweb_fe.fe.contact.crossing import (SEP, apart, boxed_crossings, closest_nodes,
-                                            pair_crossings)
+from spinweb_fe.fe.contact.crossing import SEP, apart, boxed_crossings, pair_crossings
+from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import body_snapshot
 from spinweb_fe.fe.contact.penalty import contact_push, contact_row
 
