@@ -91,7 +91,7 @@ class CableContact(Feature):
             if codes is not None and codes is not self.codes:
                 self.sync(codes, dist)
             self._pairs = audit.pairs
-            cert = Certified(audit.lb, audit.motion,
+            cert = Certified(audit.level, audit.motion,
                              no_adjacency(len(self.force), len(audit.pairs)), audit.active)
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
@@ -116,7 +116,8 @@ class CableContact(Feature):
     def trial(self, kernel, hooks: dict):
         au = hooks["audit"]  # (the trial's copy of the audit's kernel: x_n, certificates)
         return copied(kernel)._replace(pos0=au.pos0, active=au.active,
-                                       cert=Certified(au.lb, au.motion, copied(kernel.cert.adj),
+                                       cert=Certified(au.level, au.motion,
+                                                      copied(kernel.cert.adj),
                                                       au.active))
 
     def columns(self, kernel, rec, nrec: int) -> dict:

@@ -119,7 +119,7 @@ class CrossingAudit(Feature):
         self._codes = None
         self._rows = rows
         self._restored = None
-        self.frame = np.zeros(1)  # the angle of the frame that follows the web [rad]
+        self.frame_angle = np.zeros(1)  # the angle of the frame that follows the web [rad]
         self.kernel_data = None
 
     def _code(self, pairs):
@@ -149,24 +149,27 @@ class CrossingAudit(Feature):
         kept = ~sorted_in(code, self.ignored)
         self.pairs = pairs[kept]
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
-        theta = float(self.frame[0])
+        theta = float(self.frame_angle[0])
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
                                -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
         # each pair's certificate: its distance now, less the round-off of computing it
-        lb = self.pair_dist - ROUND * float(np.max(np.abs(pos), initial=0.0))
+        level = self.pair_dist - ROUND * float(np.max(np.abs(pos), initial=0.0))
         self._rows = rows or self._rows
-        self._make(active, ref, np.array(state.coil.front, np.int64), lb)
+        self._make(active, ref, np.array(state.coil.front, np.int64), level,
+                   np.zeros(len(self.elem_nodes)))
         self._built_at = int(state.step[0])
         self.rebuilds += 1
 
-    def _make(self, active, ref, fronts, lb):
+    def _make(self, active, ref, fronts, level, cum0):
         old = self.kernel_data
         pos0 = old.pos0 if old is not None else np.zeros((len(ref), 3))
         motion = old.motion if old is not None else no_motion(len(ref), len(self.elem_nodes))
+        motion.cum0[:] = cum0  # (the certificates' sums start again with a new list)
+        motion.cum[:] = cum0
         self.kernel_data = AuditKernel(
-            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, self.frame,
-            lb, motion,
+            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0,
+            self.frame_angle,            level, motion,
             self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
@@ -184,7 +187,7 @@ class CrossingAudit(Feature):
         elif k is None:
             self.build(state, rows)
         elif k.row_count.shape[0] < rows:  # (built before, with room for fewer rows)
-            self._make(k.active, k.ref, k.fronts, k.lb)
+            self._make(k.active, k.ref, k.fronts, k.level, k.motion.cum0)
 
     def kernel(self, hooks: dict):
         return self.kernel_data
@@ -237,7 +240,7 @@ class CrossingAudit(Feature):
         positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
         the list went stale (scripted motions: tests)."""
         self.kernel_data.pos0[:] = pos0
-        self.kernel_data.motion.theta[0] = self.frame[0]
+        self.kernel_data.motion.theta[0] = self.frame_angle[0]
         audit_step(self.kernel_data, state.node_pos, t0, dt,
                    np.asarray(state.coil.front, np.int64))
         self.service(state)
@@ -257,12 +260,12 @@ class CrossingAudit(Feature):
         k = self.kernel_data
         out = {"count": np.array([self.count], np.int64), **self.table(),
                "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds]),
-               "frame": self.frame, "skin": np.array([self.skin]),
+               "frame": self.frame_angle, "skin": np.array([self.skin]),
                "built_at": np.array([self._built_at])}
         if k is not None:
             out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
                        codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
-                       lb=k.lb)
+                       level=k.level, cum0=k.motion.cum0)
         return {name: np.array(v, copy=True) for name, v in out.items()}
 
     def restore(self, memory: dict) -> None:
@@ -271,7 +274,7 @@ class CrossingAudit(Feature):
             self.log[k] = list(np.asarray(memory[k]).tolist())
         self.ignored = np.asarray(memory["ignored"], np.int64)
         self.rebuilds = int(np.asarray(memory.get("rebuilds", [0])).ravel()[0])
-        self.frame[:] = np.asarray(memory.get("frame", [0.0]), np.float64).ravel()[:1]
+        self.frame_angle[:] = np.asarray(memory.get("frame", [0.0]), np.float64).ravel()[:1]
         self.skin = float(np.asarray(memory.get("skin", [self.skin])).ravel()[0])
         self._built_at = int(np.asarray(memory.get("built_at", [0])).ravel()[0])
         if "pairs" not in memory:  # (a checkpoint of the audit before its list was kept)
@@ -283,7 +286,8 @@ class CrossingAudit(Feature):
         self._restored = (np.asarray(memory["active"], np.int8),
                           np.asarray(memory["ref"], np.float64).reshape(-1, 3),
                           np.asarray(memory["fronts"], np.int64),
-                          np.asarray(memory["lb"], np.float64))
+                          np.asarray(memory["level"], np.float64),
+                          np.asarray(memory["cum0"], np.float64))
 
 
 #: units and meaning of the /crossings table's columns
@@ -296,7 +300,8 @@ TABLE_UNITS = {"time": ("s", "time of the crossing"),
 
 def write_table(h5, audit: CrossingAudit):
     """The audit's /crossings group: the log's columns and the attributes ``count``,
-    ``skin`` [m], ``touch`` [m], ``rebuilds``."""
+    ``skin`` [m] (the starting skin), ``skin_last`` [m] (the skin of the last list: it
+    adapts to the web's speed), ``touch`` [m], ``rebuilds``."""
     if "crossings" in h5:
         del h5["crossings"]
     g = h5.create_group("crossings")
@@ -304,7 +309,8 @@ def write_table(h5, audit: CrossingAudit):
         ds = g.create_dataset(name, data=arr)
         ds.attrs["units"], ds.attrs["description"] = TABLE_UNITS[name]
     g.attrs["count"] = audit.count
-    g.attrs["skin"] = audit.skin
+    g.attrs["skin"] = audit.base_skin
+    g.attrs["skin_last"] = audit.skin
     g.attrs["touch"] = audit.touch
     g.attrs["rebuilds"] = audit.rebuilds
-    g.attrs["units"] = "skin, touch: m"
+    g.attrs["units"] = "skin, skin_last, touch: m"

@@ -2,9 +2,9 @@
 moved, so that the exact test and the penalty run only on the pairs whose gap the step's
 motion could have closed (issue #42).
 
-Each listed pair keeps ``lb``, a proven lower bound of its elements' distance at the step's
-start (their exact distance when the list was built or the pair was last tested, less
-what they could have closed since). Over a step each node moves on a straight line
+Each listed pair keeps a certificate, a proven lower bound of its elements' distance: its
+exact distance when the list was built or the pair was last looked at, less what they
+could have closed since. Over a step each node moves on a straight line
 (x(t) = x_n + t (x_{n+1} - x_n)); seen in a frame turning about +z by theta(t) = theta_n +
 t dtheta (any rigid frame keeps distances), a node's displacement from its place at the
 step's start is at most
@@ -18,8 +18,15 @@ combination of its ends at every instant, so it moves by at most the larger m of
 ends (``elem``), and two elements close by at most the sum of theirs, or, finer, by at most
 the largest |y_i(1) - y_i(0) - (y_j(1) - y_j(0))| + dev_i + dev_j over an end i of one and
 an end j of the other (:func:`pair_motion`). A pair whose bound less that stays above the
-least separation cannot meet during the step, and its bound is lowered by it; the others
-are tested exactly and get their exact distance at the step's end as their new bound.
+least separation cannot meet during the step; the others are tested exactly and get their
+exact distance at the step's end as their new bound.
+
+So that a step need not write a certificate that still holds, each element's bounds are
+summed over the steps (``cum``: from the list's build to the step's end; ``cum0``: to its
+start), and a pair keeps its ``level`` K = d + cum_e + cum_f at the step it was last
+looked at (d its bound then): its bound at the end of any later step is K - cum_e - cum_f,
+read without a write. Only a pair whose elements' sum reaches its level is looked at: by
+its own relative motion first (a new level if that still holds), then exactly.
 
 The frame follows the web, not the hub: each step turns it by the rotation that fits the
 nodes' displacements best (dtheta = sum(x dy - y dx) / sum(x^2 + y^2)), so that a web
@@ -47,25 +54,29 @@ class StepMotion(NamedTuple):
 
     dy (n, 3) [m]: the chord of each node's path; dev (n,) [m]: the path's largest
     departure from its chord; elem (m,) [m]: each element's largest displacement bound
-    (the larger of its ends' |dy| + dev); theta (2,) [rad]: the frame's angle at the step's
-    start and end; scale (1,) [m]: the largest coordinate magnitude at either end (the
+    (the larger of its ends' |dy| + dev); cum0, cum (m,) [m]: ``elem`` summed from the
+    list's build to the step's start and to its end; theta (2,) [rad]: the frame's angle at
+    the step's start and end; scale (1,) [m]: the largest coordinate magnitude at either end (the
     least separation and the round-off follow it).
     """
 
     dy: np.ndarray
     dev: np.ndarray
     elem: np.ndarray
+    cum0: np.ndarray
+    cum: np.ndarray
     theta: np.ndarray
     scale: np.ndarray
 
 
 class Certified(NamedTuple):
-    """What the contact's passes know of the audit's list besides its pairs: ``lb`` (P,)
-    [m], each pair's proven least distance at the step's start; the step's ``motion``;
+    """What the contact's passes know of the audit's list besides its pairs: ``level`` (P,)
+    [m], each pair's certificate level (its bound at the step's start is level - cum0_e -
+    cum0_f); the step's ``motion``;
     ``adj``, the pairs of each node (fe.contact.zones.Adjacency, filled when first needed);
     ``active`` (m,) int8, the elements the list takes (fe.contact.broad)."""
 
-    lb: np.ndarray
+    level: np.ndarray
     motion: StepMotion
     adj: tuple
     active: np.ndarray
@@ -74,7 +85,7 @@ class Certified(NamedTuple):
 def no_motion(n_nodes: int, n_elems: int) -> StepMotion:
     """A :class:`StepMotion` of zeros for ``n_nodes`` nodes and ``n_elems`` elements."""
     return StepMotion(np.zeros((n_nodes, 3)), np.zeros(n_nodes), np.zeros(n_elems),
-                      np.zeros(2), np.zeros(1))
+                      np.zeros(n_elems), np.zeros(n_elems), np.zeros(2), np.zeros(1))
 
 
 @njit(cache=True)
@@ -114,6 +125,7 @@ def step_motion(mo, elem_nodes, active, pos0, pos1):
         ma = math.sqrt(mo.dy[a, 0] ** 2 + mo.dy[a, 1] ** 2 + mo.dy[a, 2] ** 2) + mo.dev[a]
         mb = math.sqrt(mo.dy[b, 0] ** 2 + mo.dy[b, 1] ** 2 + mo.dy[b, 2] ** 2) + mo.dev[b]
         mo.elem[e] = max(ma, mb) + slack
+        mo.cum[e] = mo.cum0[e] + mo.elem[e]
 
 
 @njit(inline="always")
@@ -128,3 +140,23 @@ def pair_motion(mo, a, b, c, d):
                           + (dy[i, 2] - dy[j, 2]) ** 2) + dev[i] + dev[j]
             out = max(out, x)
     return out + 8.0 * ROUND * mo.scale[0]
+
+
+@njit(inline="always")
+def bound_now(level, mo, p, e, f):
+    """A pair's proven least distance at the step's start [m] (its ``level`` less its
+    elements' sums to then)."""
+    return level[p] - mo.cum0[e] - mo.cum0[f]
+
+
+@njit(inline="always")
+def bound_after(level, mo, p, e, f):
+    """A pair's proven least distance over the whole step [m] (its ``level`` less its
+    elements' sums to the step's end)."""
+    return level[p] - mo.cum[e] - mo.cum[f]
+
+
+@njit(inline="always")
+def set_level(level, mo, p, e, f, d):
+    """Certify a pair at least ``d`` [m] apart at the step's end: its new level."""
+    level[p] = d + mo.cum[e] + mo.cum[f]

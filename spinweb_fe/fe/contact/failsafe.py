@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.bounds import pair_motion, step_motion
+from spinweb_fe.fe.contact.bounds import bound_after, bound_now, pair_motion, step_motion
 from spinweb_fe.fe.contact.crossing import SEP, apart, pair_crossings
 from spinweb_fe.fe.contact.distance import closest_points
 from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
@@ -149,8 +149,10 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             if rnd >= 1 and not (moved[a] or moved[b] or moved[c] or moved[d]):
                 continue
             if certified:
-                bound = cert.lb[p] - cert.motion.elem[e] - cert.motion.elem[g]
-                if bound > sep or cert.lb[p] - pair_motion(cert.motion, a, b, c, d) > sep:
+                mo = cert.motion
+                if (bound_after(cert.level, mo, p, e, g) > sep
+                        or bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d)
+                        > sep):
                     continue
             if apart(pos0, pos1, a, b, c, d, sep) or pair_crossings(
                     pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d], pos1[d],

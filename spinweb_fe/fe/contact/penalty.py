@@ -46,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.bounds import ROUND, Certified
+from spinweb_fe.fe.contact.bounds import ROUND, Certified, bound_now
 from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import HubStart
 
@@ -72,7 +72,7 @@ def _box_gap(pos, a, b, c, d):
 
 @njit(cache=True)
 def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share,
-                   lb=None, hold=None, slack=0.0):
+                   cert=None, hold=None, slack=0.0):
     """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
     which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
     radius, or less for a pair that entered the list closer: it is raised to the largest
@@ -83,10 +83,10 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     several elements at once (a column of stacked layers) shares the step's stiffness
     among them: each pair's k is divided by the most contacts one of its nodes has now
     (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
-    step. ``lb`` (P,), if given: each pair's proven least distance at ``pos``
-    (fe.contact.bounds), which rules out the pairs farther apart than twice the radius
-    (else the pairs' own boxes at ``pos``); a pair it does not rule out gets its exact
-    distance less ``slack`` [m] (round-off) as its new bound. ``hold``
+    step. ``cert`` (fe.contact.bounds.Certified), if given: the pairs' certificates, whose
+    bound at ``pos`` (the step's start) rules out the pairs farther apart than twice the
+    radius (else the pairs' own boxes at ``pos``); a pair it does not rule out gets its
+    exact distance less ``slack`` [m] (round-off) as its new bound. ``hold``
     (P, 3), if given: each pair's normal force [N] (0: not in contact) and its closest
     points' s and t, for the friction. Returns (stored energy [J], pairs in contact,
     deepest penetration [m])."""
@@ -103,12 +103,12 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     near = np.empty(n_pairs, np.int64)
     n_near = 0
     for p in range(n_pairs):
-        if lb is None:
-            e, g = pairs[p, 0], pairs[p, 1]
+        e, g = pairs[p, 0], pairs[p, 1]
+        if cert is None:
             far = _box_gap(pos, elem_nodes[e, 0], elem_nodes[e, 1], elem_nodes[g, 0],
                            elem_nodes[g, 1]) >= reach_max
         else:
-            far = lb[p] > reach_max
+            far = bound_now(cert.level, cert.motion, p, e, g) > reach_max
         if far:
             if reach[p] < reach_max:
                 reach[p] = reach_max
@@ -125,8 +125,9 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
             pd[q] = np.nan  # no node moves freely
             continue
         ps[q], pt[q], pd[q] = closest_nodes(pos, a, b, c, d)
-        if lb is not None:
-            lb[p] = max(lb[p], pd[q] - slack)
+        if cert is not None:  # (a level at the step's start: its sums to then)
+            mo = cert.motion
+            cert.level[p] = max(cert.level[p], pd[q] - slack + mo.cum0[e] + mo.cum0[g])
         if 0.0 < pd[q] < reach[p]:
             share[a] += 1
             share[b] += 1
@@ -237,7 +238,7 @@ def contact_push(ck, pos, vel, inv_mass, dt):
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,
-                                                    ck.force, ck.share, ck.cert.lb,
+                                                    ck.force, ck.share, ck.cert,
                                                     ck.hold,
                                                     ROUND * ck.cert.motion.scale[0])
     st[IN_CONTACT] = count

@@ -34,7 +34,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.bounds import ROUND, StepMotion, pair_motion, step_motion
+from spinweb_fe.fe.contact.bounds import (ROUND, StepMotion, bound_now, pair_motion, set_level,
+                                          step_motion)
 from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
 from spinweb_fe.fe.contact.crossing import SEP, apart, boxed_crossings, pair_crossings
 from spinweb_fe.fe.contact.distance import closest_nodes
@@ -67,7 +68,7 @@ class AuditKernel(NamedTuple):
     with the hub); ref (n, 3) [m]: the nodes at the build, in the frame then; fronts
     (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the step; frame (1,)
     [rad]: the angle of the frame that follows the web (fe.contact.bounds), in which ``ref``
-    and the motions are measured; lb (P,)
+    and the motions are measured; level (P,)
     [m]: each pair's proven least distance at the step's start (fe.contact.bounds); motion:
     what the nodes moved over the step (fe.contact.bounds.StepMotion); skin [m]; count (1,)
     int64: crossings so far; log_time [s], log_a, log_b, log_sign (L,): the log, n_log (1,)
@@ -83,7 +84,7 @@ class AuditKernel(NamedTuple):
     fronts: np.ndarray
     pos0: np.ndarray
     frame: np.ndarray
-    lb: np.ndarray
+    level: np.ndarray
     motion: StepMotion
     skin: float
     count: np.ndarray
@@ -111,13 +112,14 @@ def wide_pairs(au, pos0, reach):
 
 
 @njit(cache=True)
-def certified_crossings(pairs, elem_nodes, pos0, pos1, lb, mo, test, out_t, out_e, out_f,
+def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, out_e, out_f,
                         out_s):
     """The crossings of the listed ``pairs`` over the step from ``pos0`` to ``pos1`` (counted,
     the first written to the ``out_*`` arrays), tested exactly only where the pair's
-    certificate cannot rule them out (fe.contact.bounds: ``lb`` lowered by what the step
-    could close, by its elements' motion, then by the pair's own; ``mo`` the step's
-    motion); each tested pair's ``lb`` becomes its distance at the step's end. ``test``
+    certificate cannot rule them out (fe.contact.bounds: its ``level`` less its elements'
+    summed motion, then its bound at the step's start less its own relative motion; ``mo``
+    the step's motion); a pair looked at gets a new level (its distance at the step's end
+    for one tested). ``test``
     False: the certificates only (the contact's fail-safe tested this step already).
     Returns the count."""
     times = np.empty(3)
@@ -125,19 +127,17 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, lb, mo, test, out_t, out_
     w, cuts = np.empty((4, 3)), np.empty(4)
     sep = SEP * mo.scale[0]
     slack = ROUND * mo.scale[0]
-    elem = mo.elem
+    cum = mo.cum
     n = 0
     for p in range(pairs.shape[0]):
         e, f = pairs[p, 0], pairs[p, 1]
-        bound = lb[p] - elem[e] - elem[f]
-        if bound > sep:
-            lb[p] = bound
+        if level[p] - cum[e] - cum[f] > sep:  # (bound_after, read only)
             continue
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
-        bound = lb[p] - pair_motion(mo, a, b, c, d)
+        bound = bound_now(level, mo, p, e, f) - pair_motion(mo, a, b, c, d)
         if bound > sep:
-            lb[p] = bound
+            set_level(level, mo, p, e, f, bound)
             continue
         if test and not apart(pos0, pos1, a, b, c, d, sep):
             k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
@@ -149,7 +149,7 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, lb, mo, test, out_t, out_
                     out_f[n] = f
                     out_s[n] = signs[i]
                 n += 1
-        lb[p] = closest_nodes(pos1, a, b, c, d)[2] - slack
+        set_level(level, mo, p, e, f, closest_nodes(pos1, a, b, c, d)[2] - slack)
     return n
 
 
@@ -176,9 +176,10 @@ def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
                             au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end],
                             SEP * mo.scale[0])
     else:
-        n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.lb, mo, not clean,
+        n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo, not clean,
                                 au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
                                 au.log_sign[k:end])
+    mo.cum0[:] = mo.cum  # the sums to the next step's start
     logged = min(n, LOG_PER_STEP)
     for i in range(k, k + logged):
         au.log_time[i] = t0 + au.log_time[i] * dt
