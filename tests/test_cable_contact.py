@@ -231,7 +231,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
 
     from spinweb_fe.fe.contact.failsafe import contact_resolve
     from spinweb_fe.fe.contact.penalty import AGAIN, MARGIN
-    from spinweb_fe.fe.contact.crossing import closest_points
+    from spinweb_fe.fe.contact.distance import closest_points
     from spinweb_fe.record.contact import CableContact
     from spinweb_fe.record.crossings import CrossingAudit
 

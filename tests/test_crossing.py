@@ -188,7 +188,7 @@ def test_step_crossings_of_a_net_falling_through_a_line():
 def test_closest_points_of_an_element_of_no_length():
     """A folded web can hold an element whose ends coincide: its closest points are those
     of a point (no division by its zero length)."""
-    from spinweb_fe.fe.contact.crossing import closest_points
+    from spinweb_fe.fe.contact.distance import closest_points
 
     p = np.array([0.5, 1.0, 0.0])
     s, t, d = closest_points(p, p, np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0]))

@@ -32,7 +32,8 @@ def scripted(elems, n_nodes, held=(), tied=()):
 
 def state_at(pos, angle=0.0):
     return SimpleNamespace(node_pos=np.array(pos, float), hub=SimpleNamespace(
-        angle=np.array([angle])), coil=SimpleNamespace(front=np.zeros(1, np.int64)))
+        angle=np.array([angle])), coil=SimpleNamespace(front=np.zeros(1, np.int64)),
+        step=np.zeros(1, np.int64))
 
 
 def bar_through(speed, dt, steps, spin=0.0, skin=0.05):

@@ -1,6 +1,7 @@
 """Run a case's step loop under Linux ``perf`` with numba's compiled functions named.
 
-    perf record -F 4000 -o perf.data python -m tools.perf_loop cases/paper_free_arms.toml 10
+    perf record -F 4000 -o perf.data python -m tools.perf_loop cases/paper_free_arms.toml 10 \
+        [KEY=VALUE ...]
     perf report -i perf.data --no-children --sort sym -g none
 
 numba's JIT code has no symbols, so perf shows bare addresses. After compiling (or loading)
@@ -23,6 +24,7 @@ from numba.core.runtime import nrt
 
 from spinweb_fe.case import load
 from spinweb_fe.case.scene import prepare
+from spinweb_fe.run.features import features_of
 from spinweb_fe.run.loop import Schedule, simulate, time_steps
 
 
@@ -52,14 +54,16 @@ def write_map(syms, path):
 
 def main(argv=None) -> int:
     args = sys.argv[1:] if argv is None else argv
-    if len(args) != 2:
+    if len(args) < 2:
         print(__doc__.strip().splitlines()[2], file=sys.stderr)
         return 2
-    case = load(args[0], [f"time.end={args[1]}", "output.frame_dt=0"])
+    case = load(args[0], [f"time.end={args[1]}", "output.frame_dt=0", *args[2:]])
     _, model, control, state, dt = prepare(case)
-    time_steps(model, control, state, dt, 1, 22, 100)  # compile or load the loop
+    features = features_of(model, state, case)
+    time_steps(model, control, state, dt, 1, 22, 100, features)  # compile or load the loop
     write_map(jit_symbols(), f"/tmp/perf-{os.getpid()}.map")
-    res = simulate(model, control, state, dt, Schedule(case.time.end, case.output.history_dt))
+    res = simulate(model, control, state, dt, Schedule(case.time.end, case.output.history_dt),
+                   features=features)
     print(f"loop {res.loop_s:.3f} s, {res.steps} steps")
     return 0
 

@@ -217,7 +217,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if axis is not None:
             touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate, None, hub_angle[0])
         else:
-            touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs)
+            touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs, hub_angle[0])
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,
                                        threads, devices, cs)
@@ -292,7 +292,7 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if contact is not None:
             fresh, clean = settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass,
                                   hs, dt)
-        if touch_end(audit, pos, hub_angle[0], t, dt, front, fresh, clean):
+        if touch_end(audit, pos, t, dt, front, fresh, clean):
             return SERVICE, nrec
     return 0, nrec
 

@@ -2,7 +2,7 @@
 and stiffness, each listed pair's contact distance, what its fail-safe and friction did so
 far, and the step loop's view of it (hook ``contact``; the kernels are
 :mod:`spinweb_fe.fe.contact.penalty`). It works on the crossing audit's candidate list
-(record.crossings, the feature before it), whose x_n and boxes it shares.
+(record.crossings, the feature before it), whose x_n and certificates it shares.
 """
 
 from __future__ import annotations
@@ -13,7 +13,9 @@ import numpy as np
 
 from spinweb_fe.fe.contact.penalty import (AGAIN, DEEPEST_RUN, ENERGY, FRICTION, IMPULSES, KAPPA,
                                          LEFT, MARGIN, ROUNDS, TAKEN, ContactKernel)
+from spinweb_fe.fe.contact.bounds import Certified
 from spinweb_fe.fe.contact.impulses import hub_start
+from spinweb_fe.fe.contact.zones import no_adjacency
 from spinweb_fe.fe.layout import CONTACT, named
 from spinweb_fe.record.feature import Feature, copied
 
@@ -89,11 +91,13 @@ class CableContact(Feature):
             if codes is not None and codes is not self.codes:
                 self.sync(codes, dist)
             self._pairs = audit.pairs
+            cert = Certified(audit.level, audit.motion,
+                             no_adjacency(len(self.force), len(audit.pairs)), audit.active)
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
                                          self.vel1, self.vel2, hub_start(), self.force,
                                          self.share, self.follow, audit.pos0, audit.active,
-                                         audit.box, self.radius, self.kappa,
+                                         cert, self.radius, self.kappa,
                                          MARGIN * self.radius, ROUNDS, self.mu, self.stats,
                                          np.zeros((rows, 2)))
         return self._kernel
@@ -110,8 +114,11 @@ class CableContact(Feature):
                             self.audit.pair_dist)
 
     def trial(self, kernel, hooks: dict):
-        au = hooks["audit"]  # (the trial's copy of the audit's kernel: its x_n and boxes)
-        return copied(kernel)._replace(pos0=au.pos0, active=au.active, box=au.box)
+        au = hooks["audit"]  # (the trial's copy of the audit's kernel: x_n, certificates)
+        return copied(kernel)._replace(pos0=au.pos0, active=au.active,
+                                       cert=Certified(au.level, au.motion,
+                                                      copied(kernel.cert.adj),
+                                                      au.active))
 
     def columns(self, kernel, rec, nrec: int) -> dict:
         return named(kernel.rows[:nrec], CONTACT)

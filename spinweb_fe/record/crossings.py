@@ -5,9 +5,12 @@ The step loop tests each step itself (fe.contact.touch: after each step, the can
 pairs with the exact continuous test of :func:`spinweb_fe.fe.contact.crossing.pair_crossings`; the
 nodes move on straight lines over a step, as the central-difference update moves them), and
 stops for this class to rebuild the list. The candidates come from the hash-grid broad
-phase with a skin, rebuilt when a node has moved more than 3/4 of the skin, in the hub's frame,
-since the last build (distances do not change in a rigidly turning frame, so the spin
-itself never forces a rebuild), or when a held level went free. Which pairs take part:
+phase with a skin, rebuilt when a node has moved more than 3/4 of the skin since the last
+build, in a frame that turns with the web (fe.contact.bounds: distances do not change in a
+rigidly turning frame, so the spin itself never forces a rebuild), or when a held level
+went free. Between builds each pair keeps a certificate, a proven least distance lowered by
+what each step could close (fe.contact.bounds), and only the pairs whose certificate
+cannot rule a meeting out are tested exactly. Which pairs take part:
 
 - every element, the coil's held ones and the hub's tied ones too (released cables sweep
   over the coil and through the hub's frame: a list of released material alone let them
@@ -31,8 +34,9 @@ import math
 
 import numpy as np
 
-from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in, swept_boxes
-from spinweb_fe.fe.contact.crossing import pair_distances
+from spinweb_fe.fe.contact.bounds import ROUND, no_motion
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in
+from spinweb_fe.fe.contact.distance import pair_distances
 from spinweb_fe.fe.layout import AUDIT, named
 from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
 from spinweb_fe.record.feature import Feature, copied
@@ -47,6 +51,14 @@ SKIN_PER_ELEMENT = 0.2
 TOUCH = 1e-3
 #: room of the step loop's log (crossings logged between two calls at most)
 LOG_ROOM = 4096
+#: the skin grows by this factor at a rebuild that came sooner than :data:`SOON` steps after
+#: the last (a fast web uses up a thin skin in a few steps), and shrinks by it back towards
+#: the starting skin when a list lasts :data:`LATE` steps; at most :data:`SKIN_GROWTH` times
+#: the starting skin, and not while the list holds :data:`PAIRS_MAX` pairs per element
+SKIN_STEP = 1.5
+SOON, LATE = 100, 800
+SKIN_GROWTH = 8.0
+PAIRS_MAX = 60
 
 
 def default_skin(model) -> float:
@@ -96,6 +108,8 @@ class CrossingAudit(Feature):
         self.model = model
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.skin = float(skin) if skin is not None else default_skin(model)
+        self.base_skin = self.skin  # the skin adapts to the web's speed (:meth:`adapt`)
+        self._built_at = 0
         self.touch = float(touch)
         self.count, self.rebuilds = 0, 0
         self.log = {"time": [], "element_a": [], "element_b": [], "direction": []}
@@ -105,6 +119,7 @@ class CrossingAudit(Feature):
         self._codes = None
         self._rows = rows
         self._restored = None
+        self.frame_angle = np.zeros(1)  # the angle of the frame that follows the web [rad]
         self.kernel_data = None
 
     def _code(self, pairs):
@@ -127,28 +142,34 @@ class CrossingAudit(Feature):
         # (codes ascend: the broad phase lists pairs in code order; merges, not hashes)
         entering = ~sorted_in(code, self._codes) if self._codes is not None else \
             np.ones(len(code), bool)
-        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.skin])]
+        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.base_skin])]
         new = code[entering & (dist <= self.touch)]
         self.ignored = np.union1d(staying, new) if len(new) else staying
         self._codes = code
         kept = ~sorted_in(code, self.ignored)
         self.pairs = pairs[kept]
         self.pair_codes, self.pair_dist = code[kept], dist[kept]
-        theta = float(state.hub.angle[0])
+        theta = float(self.frame_angle[0])
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],
                                -s * pos[:, 0] + c * pos[:, 1], pos[:, 2]])
-        box = np.zeros((len(self.elem_nodes), 6))
-        swept_boxes(self.elem_nodes, active, pos, pos, box)
+        # each pair's certificate: its distance now, less the round-off of computing it
+        level = self.pair_dist - ROUND * float(np.max(np.abs(pos), initial=0.0))
         self._rows = rows or self._rows
-        self._make(active, ref, np.array(state.coil.front, np.int64), box)
+        self._make(active, ref, np.array(state.coil.front, np.int64), level,
+                   np.zeros(len(self.elem_nodes)))
+        self._built_at = int(state.step[0])
         self.rebuilds += 1
 
-    def _make(self, active, ref, fronts, box):
+    def _make(self, active, ref, fronts, level, cum0):
         old = self.kernel_data
         pos0 = old.pos0 if old is not None else np.zeros((len(ref), 3))
+        motion = old.motion if old is not None else no_motion(len(ref), len(self.elem_nodes))
+        motion.cum0[:] = cum0  # (the certificates' sums start again with a new list)
+        motion.cum[:] = cum0
         self.kernel_data = AuditKernel(
-            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0, box,
+            self.elem_nodes, self.pairs, self.ignored, active, ref, fronts, pos0,
+            self.frame_angle,            level, motion,
             self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
@@ -166,7 +187,7 @@ class CrossingAudit(Feature):
         elif k is None:
             self.build(state, rows)
         elif k.row_count.shape[0] < rows:  # (built before, with room for fewer rows)
-            self._make(k.active, k.ref, k.fronts, k.box)
+            self._make(k.active, k.ref, k.fronts, k.level, k.motion.cum0)
 
     def kernel(self, hooks: dict):
         return self.kernel_data
@@ -189,8 +210,24 @@ class CrossingAudit(Feature):
             self.log["direction"].extend(k.log_sign[:n].tolist())
             k.n_log[0] = 0
         self.count = int(k.count[0])
-        if k.moved[0] > REBUILD * self.skin or not np.array_equal(k.fronts, state.coil.front):
+        moved = k.moved[0] > REBUILD * self.skin
+        if moved or not np.array_equal(k.fronts, state.coil.front):
+            if moved:
+                self.adapt(int(state.step[0]))
             self.build(state)
+
+    def adapt(self, step: int) -> None:
+        """The skin for the next list, from how long this one lasted (a rebuild after
+        ``step - last build`` steps): wider for a web that used it up quickly, back towards
+        the starting skin for one that did not. Every skin gives the same crossings: the
+        skin sets only how many pairs each step looks at and how often the list is built."""
+        steps = step - self._built_at
+        active = max(1, int(np.count_nonzero(self.kernel_data.active)))
+        if (steps < SOON and self.skin < SKIN_GROWTH * self.base_skin
+                and len(self.pairs) < PAIRS_MAX * active):
+            self.skin = min(SKIN_STEP * self.skin, SKIN_GROWTH * self.base_skin)
+        elif steps > LATE and self.skin > self.base_skin:
+            self.skin = max(self.skin / SKIN_STEP, self.base_skin)
 
     take = service
 
@@ -203,7 +240,8 @@ class CrossingAudit(Feature):
         positions (starting at ``t0`` [s]), as the step loop tests them; then a rebuild if
         the list went stale (scripted motions: tests)."""
         self.kernel_data.pos0[:] = pos0
-        audit_step(self.kernel_data, state.node_pos, float(state.hub.angle[0]), t0, dt,
+        self.kernel_data.motion.theta[0] = self.frame_angle[0]
+        audit_step(self.kernel_data, state.node_pos, t0, dt,
                    np.asarray(state.coil.front, np.int64))
         self.service(state)
 
@@ -216,15 +254,18 @@ class CrossingAudit(Feature):
 
     def memory(self) -> dict:
         """The count, the log, and the list as the step loop holds it (its pairs, those
-        left out, the positions it was built at, its fronts and boxes), so that a restart
-        tests the same pairs as the run would have, and rebuilds where it would have."""
+        left out, the positions it was built at, its fronts, each pair's certificate), so
+        that a restart tests the same pairs as the run would have, and rebuilds where it
+        would have."""
         k = self.kernel_data
         out = {"count": np.array([self.count], np.int64), **self.table(),
-               "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds])}
+               "ignored": self.ignored.copy(), "rebuilds": np.array([self.rebuilds]),
+               "frame": self.frame_angle, "skin": np.array([self.skin]),
+               "built_at": np.array([self._built_at])}
         if k is not None:
             out.update(pairs=self.pairs, pair_codes=self.pair_codes, pair_dist=self.pair_dist,
                        codes=self._codes, active=k.active, ref=k.ref, fronts=k.fronts,
-                       box=k.box)
+                       level=k.level, cum0=k.motion.cum0)
         return {name: np.array(v, copy=True) for name, v in out.items()}
 
     def restore(self, memory: dict) -> None:
@@ -233,6 +274,9 @@ class CrossingAudit(Feature):
             self.log[k] = list(np.asarray(memory[k]).tolist())
         self.ignored = np.asarray(memory["ignored"], np.int64)
         self.rebuilds = int(np.asarray(memory.get("rebuilds", [0])).ravel()[0])
+        self.frame_angle[:] = np.asarray(memory.get("frame", [0.0]), np.float64).ravel()[:1]
+        self.skin = float(np.asarray(memory.get("skin", [self.skin])).ravel()[0])
+        self._built_at = int(np.asarray(memory.get("built_at", [0])).ravel()[0])
         if "pairs" not in memory:  # (a checkpoint of the audit before its list was kept)
             return
         self.pairs = np.asarray(memory["pairs"], np.int64).reshape(-1, 2)
@@ -242,7 +286,8 @@ class CrossingAudit(Feature):
         self._restored = (np.asarray(memory["active"], np.int8),
                           np.asarray(memory["ref"], np.float64).reshape(-1, 3),
                           np.asarray(memory["fronts"], np.int64),
-                          np.asarray(memory["box"], np.float64).reshape(-1, 6))
+                          np.asarray(memory["level"], np.float64),
+                          np.asarray(memory["cum0"], np.float64))
 
 
 #: units and meaning of the /crossings table's columns
@@ -255,7 +300,8 @@ TABLE_UNITS = {"time": ("s", "time of the crossing"),
 
 def write_table(h5, audit: CrossingAudit):
     """The audit's /crossings group: the log's columns and the attributes ``count``,
-    ``skin`` [m], ``touch`` [m], ``rebuilds``."""
+    ``skin`` [m] (the starting skin), ``skin_last`` [m] (the skin of the last list: it
+    adapts to the web's speed), ``touch`` [m], ``rebuilds``."""
     if "crossings" in h5:
         del h5["crossings"]
     g = h5.create_group("crossings")
@@ -263,7 +309,8 @@ def write_table(h5, audit: CrossingAudit):
         ds = g.create_dataset(name, data=arr)
         ds.attrs["units"], ds.attrs["description"] = TABLE_UNITS[name]
     g.attrs["count"] = audit.count
-    g.attrs["skin"] = audit.skin
+    g.attrs["skin"] = audit.base_skin
+    g.attrs["skin_last"] = audit.skin
     g.attrs["touch"] = audit.touch
     g.attrs["rebuilds"] = audit.rebuilds
-    g.attrs["units"] = "skin, touch: m"
+    g.attrs["units"] = "skin, skin_last, touch: m"

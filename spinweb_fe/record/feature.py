@@ -79,8 +79,15 @@ class Feature(Recorder):
 
 
 def copied(kernel):
-    """A NamedTuple of arrays with every array copied (a feature's kernel for a trial
-    step)."""
+    """A NamedTuple of arrays (and of such tuples) with every array copied (a feature's
+    kernel for a trial step)."""
     import numpy as np
 
-    return type(kernel)(*(v.copy() if isinstance(v, np.ndarray) else v for v in kernel))
+    def copy(v):
+        if isinstance(v, np.ndarray):
+            return v.copy()
+        if isinstance(v, tuple) and hasattr(v, "_fields"):
+            return copied(v)
+        return v
+
+    return type(kernel)(*(copy(v) for v in kernel))

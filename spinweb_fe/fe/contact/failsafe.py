@@ -12,20 +12,22 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.broad import boxes_apart, swept_boxes
-from spinweb_fe.fe.contact.crossing import closest_points, moved_crosses, pair_crossings
+from spinweb_fe.fe.contact.bounds import bound_after, bound_now, pair_motion, step_motion
+from spinweb_fe.fe.contact.crossing import SEP, apart, pair_crossings
+from spinweb_fe.fe.contact.distance import closest_points
 from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
                                             impulse_work)
 from spinweb_fe.fe.contact.penalty import AGAIN, FRICTION, IMPULSES, IN_CONTACT, LEFT, TAKEN
-from spinweb_fe.fe.contact.zones import (ZONE_ROUNDS, axis_map, body_map, impact_zones,
-                                         pair_adjacency, pairs_of)
+from spinweb_fe.fe.contact.zones import (ZONE_ROUNDS, axis_map, body_map, ensure_adjacency,
+                                         impact_zones, no_adjacency, pairs_of)
 
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
                     theta=0.0, again=False, place=True):
-    """The fail-safe over the step just taken from ``ck.pos0`` (the swept boxes first).
-    Returns its impulses (0: the positions and the boxes stand) and the crossings its last
+    """The fail-safe over the step just taken from ``ck.pos0`` (the step's motion and the
+    pairs' certificates first: fe.contact.bounds). Returns its impulses (0: the positions
+    and the motion stand) and the crossings its last
     pass left (both 0: no pair of the list crossed in the step). The friction's impulses
     first (``ck.mu`` > 0). ``rate``, ``inertia`` ((1,) arrays, a fixed axis's rate
     omega_{n+1/2} and effective inertia): the hub takes the angular impulse about its axis
@@ -59,9 +61,9 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
                                        (inv_mass == 0.0) | ck.follow, ck.follow)
     else:
         ck.follow[:] = False
-        swept_boxes(ck.elem_nodes, ck.active, ck.pos0, pos, ck.box)
+        step_motion(ck.cert.motion, ck.elem_nodes, ck.active, ck.pos0, pos)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.box, ZONE_ROUNDS, hub,
+                                       dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
                                        None, ck.follow)
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
@@ -94,7 +96,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
 
 @njit(cache=True)
 def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
-                      box=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None, follow=None):
+                      cert=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None, follow=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.contact.crossing's exact test) gets an impulse along the normal of the two
@@ -105,8 +107,10 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     (inv_mass 0: held on or tied to the hub) takes no share (its side is infinitely heavy
     within the pass; the hub takes the reaction afterwards, :func:`contact_resolve`). The
     first pass tests every pair, later passes (at most ``rounds`` in all) the pairs with a
-    node an impulse moved; ``box`` (m, 6), if given, the elements' swept boxes of the step
-    (fe.contact.crossing.swept_boxes) for the first pass. If the rounds run out with crossings
+    node an impulse moved; ``cert`` (fe.contact.bounds.Certified), if given, the pairs'
+    certificates, the step's motion, the list's adjacency and its elements' activity:
+    every pass tests only the pairs they cannot rule out, with the conservative test's
+    least separation. If the rounds run out with crossings
     left, the pairs still crossing move as impact zones (fe.contact.zones: at most
     ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
     with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
@@ -121,26 +125,38 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     first = 0 if moved is None else 1  # (a later pass's test from the start)
     if moved is None:
         moved = np.ones(pos0.shape[0], np.bool_)
+    n_nodes = pos0.shape[0]
     todo = np.arange(pairs.shape[0])
-    adj = (todo, todo, todo)
+    adj = no_adjacency(n_nodes, pairs.shape[0]) if cert is None else cert.adj
+    sep = 0.0 if cert is None else SEP * cert.motion.scale[0]
     for rnd in range(first, rounds):
-        now = np.zeros(pos0.shape[0], np.bool_)
+        now = np.zeros(n_nodes, np.bool_)
         left = 0
-        if rnd == 1:  # the pairs of each node, for the passes after the first (fe.contact.zones)
-            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
+        certified = cert is not None and rnd == 0
         if rnd >= 1:
-            todo = pairs_of(adj, moved, rnd)
+            if 8 * np.count_nonzero(moved) < n_nodes:  # the pairs of the nodes the pass moved
+                ensure_adjacency(adj, pairs, elem_nodes)
+                todo = pairs_of(adj, moved)
+            else:  # most nodes moved (the hub's, placed again): the whole list, certified
+                todo = np.arange(pairs.shape[0])
+                if cert is not None:  # (the certificates of the motion as it now stands)
+                    step_motion(cert.motion, elem_nodes, cert.active, pos0, pos1)
+                    certified = True
         for p in todo:
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-            if box is not None and rnd == 0:
-                if boxes_apart(box, e, g, 0.0) or pair_crossings(
-                        pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
-                        pos1[d], times, signs, scratch, cuts) == 0:
+            if rnd >= 1 and not (moved[a] or moved[b] or moved[c] or moved[d]):
+                continue
+            if certified:
+                mo = cert.motion
+                if (bound_after(cert.level, mo, p, e, g) > sep
+                        or bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d)
+                        > sep):
                     continue
-            elif not moved_crosses(pos0, pos1, moved, a, b, c, d, times, signs, scratch,
-                                   cuts):
+            if apart(pos0, pos1, a, b, c, d, sep) or pair_crossings(
+                    pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d], pos1[d],
+                    times, signs, scratch, cuts, sep) == 0:
                 continue
             left += 1
             tau = times[0]
@@ -189,8 +205,6 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if left == 0:
             break
     if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
-        if rounds == 1 and first == 0:
-            adj = pair_adjacency(pairs, elem_nodes, pos0.shape[0])
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
                                zone_rounds, hub, moved, adj, follow)
     return taken, impulses, left

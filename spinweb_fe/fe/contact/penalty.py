@@ -46,8 +46,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.broad import boxes_apart
-from spinweb_fe.fe.contact.crossing import closest_nodes
+from spinweb_fe.fe.contact.bounds import ROUND, Certified, bound_now
+from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import HubStart
 
 #: the penalty stiffness k = KAPPA m / dt^2 (the contact spring's critical step 4 dt)
@@ -72,7 +72,7 @@ def _box_gap(pos, a, b, c, d):
 
 @njit(cache=True)
 def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, force, share,
-                   box=None, hold=None):
+                   cert=None, hold=None, slack=0.0):
     """The penalty forces of the candidate ``pairs`` at ``pos`` into ``force`` (n, 3),
     which is zeroed first; ``reach`` (P,) [m]: each pair's contact distance (twice the
     radius, or less for a pair that entered the list closer: it is raised to the largest
@@ -83,9 +83,10 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     several elements at once (a column of stacked layers) shares the step's stiffness
     among them: each pair's k is divided by the most contacts one of its nodes has now
     (``share`` (n,) int64 scratch), so that the springs on a node together stay within the
-    step. ``box`` (m, 6), if given: boxes that hold every element at ``pos`` (the swept
-    boxes of the step that led here, fe.contact.crossing.swept_boxes), which rule out the pairs
-    farther apart than twice the radius (else the pairs' own boxes at ``pos``). ``hold``
+    step. ``cert`` (fe.contact.bounds.Certified), if given: the pairs' certificates, whose
+    bound at ``pos`` (the step's start) rules out the pairs farther apart than twice the
+    radius (else the pairs' own boxes at ``pos``); a pair it does not rule out gets its
+    exact distance less ``slack`` [m] (round-off) as its new bound. ``hold``
     (P, 3), if given: each pair's normal force [N] (0: not in contact) and its closest
     points' s and t, for the friction. Returns (stored energy [J], pairs in contact,
     deepest penetration [m])."""
@@ -95,32 +96,46 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         hold[:, 0] = 0.0
     reach_max = 2.0 * radius
     energy, count, deepest = 0.0, 0, 0.0
-    # first the pairs' closest points (NaN: no node free; infinity: apart by their
-    # boxes alone) and the contacts per node, then the push
+    # first the near pairs (those their certificate or boxes do not hold farther apart than
+    # twice the radius: a far one's contact distance rises to it), their closest points
+    # (NaN: no node free) and the contacts per node, then the push
     n_pairs = pairs.shape[0]
-    ps, pt, pd = np.empty(n_pairs), np.empty(n_pairs), np.empty(n_pairs)
+    near = np.empty(n_pairs, np.int64)
+    n_near = 0
     for p in range(n_pairs):
+        e, g = pairs[p, 0], pairs[p, 1]
+        if cert is None:
+            far = _box_gap(pos, elem_nodes[e, 0], elem_nodes[e, 1], elem_nodes[g, 0],
+                           elem_nodes[g, 1]) >= reach_max
+        else:
+            far = bound_now(cert.level, cert.motion, p, e, g) > reach_max
+        if far:
+            if reach[p] < reach_max:
+                reach[p] = reach_max
+            continue
+        near[n_near] = p
+        n_near += 1
+    ps, pt, pd = np.empty(n_near), np.empty(n_near), np.empty(n_near)
+    for q in range(n_near):
+        p = near[q]
         e, g = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-        if box is None:
-            far = _box_gap(pos, a, b, c, d) >= reach_max
-        else:
-            far = boxes_apart(box, e, g, reach_max)
-        if far:
-            pd[p] = np.inf
-            continue
         if max(inv_mass[a], inv_mass[b]) + max(inv_mass[c], inv_mass[d]) == 0.0:
-            pd[p] = np.nan  # no node moves freely
+            pd[q] = np.nan  # no node moves freely
             continue
-        ps[p], pt[p], pd[p] = closest_nodes(pos, a, b, c, d)
-        if 0.0 < pd[p] < reach[p]:
+        ps[q], pt[q], pd[q] = closest_nodes(pos, a, b, c, d)
+        if cert is not None:  # (a level at the step's start: its sums to then)
+            mo = cert.motion
+            cert.level[p] = max(cert.level[p], pd[q] - slack + mo.cum0[e] + mo.cum0[g])
+        if 0.0 < pd[q] < reach[p]:
             share[a] += 1
             share[b] += 1
             share[c] += 1
             share[d] += 1
-    for p in range(n_pairs):
-        dist = pd[p]
+    for q in range(n_near):
+        p = near[q]
+        dist = pd[q]
         if np.isnan(dist):
             continue
         if dist >= reach[p] or dist <= 0.0:  # apart: the contact distance rises with it
@@ -129,7 +144,7 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         e, g = pairs[p, 0], pairs[p, 1]
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[g, 0], elem_nodes[g, 1]
-        s, t = ps[p], pt[p]
+        s, t = ps[q], pt[q]
         delta = reach[p] - dist
         # the pair's stiffness from its nodes' masses, not from where it touches: one
         # k per pair (while its nodes' contacts stay) keeps the force the gradient of
@@ -177,8 +192,9 @@ class ContactKernel(NamedTuple):
     work; hub0: the hub at the step's start and the reaction the fail-safe gave it
     (fe.contact.impulses.HubStart); force
     (n, 3) [N] and share (n,) int64: scratch; follow (n,) bool: the free nodes that move
-    with the hub this step (fe.contact.zones); pos0, active, box: the audit's (x_n, the
-    elements its broad phase takes, the swept boxes [m] of the last step); radius [m],
+    with the hub this step (fe.contact.zones); pos0, active, cert: the audit's (x_n, the
+    elements its broad phase takes, the pairs' certificates and the step's motion:
+    fe.contact.bounds.Certified); radius [m],
     kappa, margin [m] (the fail-safe's), rounds, mu (the friction coefficient); stats (9,):
     stored energy [J], pairs in contact, deepest penetration [m] now and over the run,
     energy the fail-safe took [J], its impulses, crossings it left, energy the friction
@@ -199,7 +215,7 @@ class ContactKernel(NamedTuple):
     follow: np.ndarray
     pos0: np.ndarray
     active: np.ndarray
-    box: np.ndarray
+    cert: Certified
     radius: float
     kappa: float
     margin: float
@@ -222,7 +238,9 @@ def contact_push(ck, pos, vel, inv_mass, dt):
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,
-                                                    ck.force, ck.share, ck.box, ck.hold)
+                                                    ck.force, ck.share, ck.cert,
+                                                    ck.hold,
+                                                    ROUND * ck.cert.motion.scale[0])
     st[IN_CONTACT] = count
     st[DEEPEST_RUN] = max(st[DEEPEST_RUN], st[DEEPEST])
 

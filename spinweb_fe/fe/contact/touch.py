@@ -14,7 +14,8 @@ a scene without them compiles and runs as before):
                  (the motion the step ends with), and whether its list is still valid
 
 The loop stops after a step (status :data:`SERVICE`) when the audit's list has gone stale (a
-node moved more than :data:`REBUILD` of the skin in the hub's frame since the build, or a
+node moved more than :data:`REBUILD` of the skin since the build, in the frame that follows
+the web (fe.contact.bounds), or a
 held level went free) or its log is nearly full: Python then rebuilds the list
 (record.crossings) and goes on. A list is valid while no node has moved more than the skin:
 a pair that was not listed was more than twice the skin apart (their boxes, widened by the
@@ -33,24 +34,27 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.penalty import contact_push, contact_row
+from spinweb_fe.fe.contact.bounds import (ROUND, StepMotion, bound_now, pair_motion, set_level,
+                                          step_motion)
 from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
-from spinweb_fe.fe.contact.crossing import boxed_crossings
+from spinweb_fe.fe.contact.crossing import SEP, apart, boxed_crossings, pair_crossings
+from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import body_snapshot
+from spinweb_fe.fe.contact.penalty import contact_push, contact_row
 
 #: status of ``advance``: stopped after a step for Python to rebuild the audit's list
 SERVICE = 2
 #: crossings logged per step at most (the count has them all)
 LOG_PER_STEP = 64
 #: the list is rebuilt after a step that left a node this share of the skin from its place
-#: at the build (hub's frame)
+#: at the build (in the frame that follows the web)
 REBUILD = 0.75
 #: passes of the contact's fail-safe per step at most: the first, and one after each
 #: reaction of the hub (its tied and held nodes placed again, fe.step.settle)
 REACTIONS = 4
 #: a step that takes a node beyond this share of the skin is tested on a list of its own
 #: (the rest of the skin covers the chord of a turning frame: a node at radius rho strays
-#: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the hub by
+#: from it by at most rho dtheta^2 / 8 + |dtheta| u / 4 over a step that turns the frame by
 #: dtheta and moves the node by u in it, microns at 25 rad/s)
 WIDE = 0.9
 
@@ -60,13 +64,16 @@ class AuditKernel(NamedTuple):
 
     elem_nodes (m, 2) int64; pairs (P, 2) int64: the candidate list; ignored (I,) int64:
     sorted codes (e * m + f) of the pairs left out (touching at entry); active (m,) int8:
-    the broad phase's (1, or fe.contact.crossing.RIGID for an element both of whose ends move with
-    the hub); ref (n, 3) [m]: the nodes at the build, in the hub's frame
-    then; fronts (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the
-    step; box (m, 6) [m]: the boxes the active elements swept over the last step
-    (fe.contact.crossing.swept_boxes; at the build, their boxes then); skin [m]; count (1,) int64: crossings so far; log_time [s], log_a, log_b, log_sign
-    (L,): the log, n_log (1,) int64 of it filled; row_count (R,): the count at each history
-    row of the call; moved (1,) [m]: the largest motion since the build.
+    the broad phase's (1, or fe.contact.broad.RIGID for an element both of whose ends move
+    with the hub); ref (n, 3) [m]: the nodes at the build, in the frame then; fronts
+    (k,) int64: the coil's fronts at the build; pos0 (n, 3) [m]: x_n of the step; frame (1,)
+    [rad]: the angle of the frame that follows the web (fe.contact.bounds), in which ``ref``
+    and the motions are measured; level (P,)
+    [m]: each pair's proven least distance at the step's start (fe.contact.bounds); motion:
+    what the nodes moved over the step (fe.contact.bounds.StepMotion); skin [m]; count (1,)
+    int64: crossings so far; log_time [s], log_a, log_b, log_sign (L,): the log, n_log (1,)
+    int64 of it filled; row_count (R,): the count at each history row of the call; moved
+    (1,) [m]: the largest motion since the build.
     """
 
     elem_nodes: np.ndarray
@@ -76,7 +83,9 @@ class AuditKernel(NamedTuple):
     ref: np.ndarray
     fronts: np.ndarray
     pos0: np.ndarray
-    box: np.ndarray
+    frame: np.ndarray
+    level: np.ndarray
+    motion: StepMotion
     skin: float
     count: np.ndarray
     log_time: np.ndarray
@@ -103,28 +112,74 @@ def wide_pairs(au, pos0, reach):
 
 
 @njit(cache=True)
-def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
-    """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]; the
-    hub at ``theta`` [rad] now), counted and logged (``fresh``: ``au.box`` already holds
-    this step's swept boxes; ``clean``: the contact's fail-safe tested this list on this
-    motion and found no crossing, so the same test is not run again). Returns True if the
-    list needs a rebuild (or the log a flush) before the next step."""
+def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, out_e, out_f,
+                        out_s):
+    """The crossings of the listed ``pairs`` over the step from ``pos0`` to ``pos1`` (counted,
+    the first written to the ``out_*`` arrays), tested exactly only where the pair's
+    certificate cannot rule them out (fe.contact.bounds: its ``level`` less its elements'
+    summed motion, then its bound at the step's start less its own relative motion; ``mo``
+    the step's motion); a pair looked at gets a new level (its distance at the step's end
+    for one tested). ``test``
+    False: the certificates only (the contact's fail-safe tested this step already).
+    Returns the count."""
+    times = np.empty(3)
+    signs = np.empty(3, np.int64)
+    w, cuts = np.empty((4, 3)), np.empty(4)
+    sep = SEP * mo.scale[0]
+    slack = ROUND * mo.scale[0]
+    cum = mo.cum
+    n = 0
+    for p in range(pairs.shape[0]):
+        e, f = pairs[p, 0], pairs[p, 1]
+        if level[p] - cum[e] - cum[f] > sep:  # (bound_after, read only)
+            continue
+        a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+        c, d = elem_nodes[f, 0], elem_nodes[f, 1]
+        bound = bound_now(level, mo, p, e, f) - pair_motion(mo, a, b, c, d)
+        if bound > sep:
+            set_level(level, mo, p, e, f, bound)
+            continue
+        if test and not apart(pos0, pos1, a, b, c, d, sep):
+            k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
+                               pos0[d], pos1[d], times, signs, w, cuts, sep)
+            for i in range(k):
+                if n < out_t.shape[0]:
+                    out_t[n] = times[i]
+                    out_e[n] = e
+                    out_f[n] = f
+                    out_s[n] = signs[i]
+                n += 1
+        set_level(level, mo, p, e, f, closest_nodes(pos1, a, b, c, d)[2] - slack)
+    return n
+
+
+@njit(cache=True)
+def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
+    """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]),
+    counted and logged (``fresh``: ``au.motion`` already holds
+    this step's motion; ``clean``: the contact's fail-safe tested this list on this
+    motion and found no crossing, so only the certificates are kept up). Returns True if
+    the list needs a rebuild (or the log a flush) before the next step."""
+    mo = au.motion
     if not fresh:
-        swept_boxes(au.elem_nodes, au.active, au.pos0, pos, au.box)
+        step_motion(mo, au.elem_nodes, au.active, au.pos0, pos)
+    theta = au.frame[0] = mo.theta[1]  # the frame that follows the web, now
     moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))
     au.moved[0] = moved
     k = au.n_log[0]
     end = k + LOG_PER_STEP
     if moved > WIDE * au.skin:  # a step beyond the list's reach: a list as wide as it
         pairs = wide_pairs(au, au.pos0, au.skin + moved)
-        n = boxed_crossings(pairs, au.elem_nodes, au.pos0, pos, au.box, au.log_time[k:end],
-                            au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
-    elif clean:
-        n = 0
+        box = np.empty((au.elem_nodes.shape[0], 6))
+        swept_boxes(au.elem_nodes, au.active, au.pos0, pos, box)
+        n = boxed_crossings(pairs, au.elem_nodes, au.pos0, pos, box, au.log_time[k:end],
+                            au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end],
+                            SEP * mo.scale[0])
     else:
-        n = boxed_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.box,
-                            au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
-                            au.log_sign[k:end])
+        n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo, not clean,
+                                au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
+                                au.log_sign[k:end])
+    mo.cum0[:] = mo.cum  # the sums to the next step's start
     logged = min(n, LOG_PER_STEP)
     for i in range(k, k + logged):
         au.log_time[i] = t0 + au.log_time[i] * dt
@@ -138,11 +193,12 @@ def audit_step(au, pos, theta, t0, dt, fronts, fresh=False, clean=False):
 
 @njit(inline="always")
 def touch_begin(audit, contact, pos, vel, inv_mass, dt, rate=None, body=None, theta=0.0):
-    """Step start: x_n kept, the contact's penalty forces (``rate`` and ``theta``: a fixed axis's rate
-    and angle, ``body``: a free hub's state, whose velocities and pose are kept for the
-    fail-safe's reaction and its zones)."""
+    """Step start: x_n and the frame's angle kept, the contact's penalty forces (``rate``,
+    ``theta``: a fixed axis's rate and angle [rad], ``body``: a free hub's state, whose
+    velocities and pose are kept for the fail-safe's reaction and its zones)."""
     if audit is not None:
         audit.pos0[:] = pos
+        audit.motion.theta[0] = audit.frame[0]
     elif contact is not None:
         contact.pos0[:] = pos
     if contact is not None:
@@ -164,9 +220,9 @@ def touch_row(audit, contact, k):
 
 
 @njit(inline="always")
-def touch_end(audit, pos, theta, t0, dt, fronts, fresh=False, clean=False):
+def touch_end(audit, pos, t0, dt, fronts, fresh=False, clean=False):
     """Step end, after the contact's fail-safe (fe.step.settle; ``fresh``, ``clean`` as
     :func:`audit_step` takes them): the audit. True: stop for Python."""
     if audit is not None:
-        return audit_step(audit, pos, theta, t0, dt, fronts, fresh, clean)
+        return audit_step(audit, pos, t0, dt, fronts, fresh, clean)
     return False

@@ -31,6 +31,8 @@ its nodes again.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -41,14 +43,35 @@ from spinweb_fe.fe.hub.rigid import hub_centre, jacobi3, rotation
 ZONE_ROUNDS = 20
 
 
+class Adjacency(NamedTuple):
+    """For each node the listed pairs with an element that has it (``idx[ptr[i]:ptr[i +
+    1]]``, by a counting sort), filled when first needed (``ready``); ``stamp`` (P,) and
+    ``clock`` (1,): the marks :func:`pairs_of` sets, each call a new one."""
+
+    ptr: np.ndarray
+    idx: np.ndarray
+    stamp: np.ndarray
+    clock: np.ndarray
+    ready: np.ndarray
+
+
 @njit(cache=True)
-def pair_adjacency(pairs, elem_nodes, n):
-    """(ptr (n + 1,), idx, stamp (P,) -1): for each of the ``n`` nodes the pairs with an
-    element that has it (idx[ptr[i]:ptr[i + 1]], by a counting sort), and a scratch for
-    :func:`pairs_of`. Later passes of the fail-safe and of the zones test only the pairs
-    of the nodes the last pass moved, not the whole list (stacked columns list 1e5-1e6
-    pairs, and a pass over them all cost milliseconds)."""
-    ptr = np.zeros(n + 1, np.int64)
+def no_adjacency(n_nodes, n_pairs):
+    """An :class:`Adjacency` for ``n_nodes`` nodes and ``n_pairs`` pairs, not filled yet."""
+    return Adjacency(np.zeros(n_nodes + 1, np.int64), np.empty(4 * n_pairs, np.int64),
+                     np.full(n_pairs, -1, np.int64), np.zeros(1, np.int64),
+                     np.zeros(1, np.bool_))
+
+
+@njit(cache=True)
+def ensure_adjacency(adj, pairs, elem_nodes):
+    """Fill ``adj`` for ``pairs`` if it is not yet (a list's adjacency is built once, when a
+    pass after the first needs it: stacked columns list 1e5-1e6 pairs)."""
+    if adj.ready[0]:
+        return
+    n = adj.ptr.shape[0] - 1
+    ptr = adj.ptr
+    ptr[:] = 0
     for p in range(pairs.shape[0]):
         for side in range(2):
             e = pairs[p, side]
@@ -57,21 +80,31 @@ def pair_adjacency(pairs, elem_nodes, n):
     for i in range(n):
         ptr[i + 1] += ptr[i]
     fill = ptr[:-1].copy()
-    idx = np.empty(ptr[n], np.int64)
     for p in range(pairs.shape[0]):
         for side in range(2):
             e = pairs[p, side]
             for i in (elem_nodes[e, 0], elem_nodes[e, 1]):
-                idx[fill[i]] = p
+                adj.idx[fill[i]] = p
                 fill[i] += 1
-    return ptr, idx, np.full(pairs.shape[0], -1, np.int64)
+    adj.ready[0] = True
 
 
 @njit(cache=True)
-def pairs_of(adj, moved, tick):
-    """The pairs (sorted) with a node in ``moved`` (n,) bool, each once (``adj`` from
-    :func:`pair_adjacency`; ``tick``: a mark not used before in this step's passes)."""
-    ptr, idx, stamp = adj
+def pair_adjacency(pairs, elem_nodes, n):
+    """The :class:`Adjacency` of ``pairs`` for ``n`` nodes, filled. Later passes of the
+    fail-safe and of the zones test only the pairs of the nodes the last pass moved, not the
+    whole list (a pass over all of a stacked web's pairs costs milliseconds)."""
+    adj = no_adjacency(n, pairs.shape[0])
+    ensure_adjacency(adj, pairs, elem_nodes)
+    return adj
+
+
+@njit(cache=True)
+def pairs_of(adj, moved):
+    """The pairs (sorted) with a node in ``moved`` (n,) bool, each once (``adj`` filled)."""
+    adj.clock[0] += 1
+    tick = adj.clock[0]
+    ptr, idx, stamp = adj.ptr, adj.idx, adj.stamp
     count = 0
     for i in range(moved.shape[0]):
         if moved[i]:
@@ -227,6 +260,7 @@ def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_R
         moved = np.ones(n, np.bool_)
     if adj is None:
         adj = pair_adjacency(pairs, elem_nodes, n)
+    ensure_adjacency(adj, pairs, elem_nodes)
     if follow is None:
         follow = np.zeros(n, np.bool_)
     times = np.empty(3)
@@ -235,7 +269,7 @@ def impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, rounds=ZONE_R
     left, zones = 0, 0
     for rnd in range(rounds + 1):
         left = 0
-        for p in pairs_of(adj, moved, -2 - rnd):  # (marks apart from the fail-safe's)
+        for p in pairs_of(adj, moved):
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
