@@ -1,94 +1,143 @@
-"""Cost of the crossing audit and of the cable-cable contact against the plain step (issue #26).
+"""Cost of the crossing audit and of the cable-cable contact over whole deployments (issues
+#26, #42).
 
-    python -m benchmarks.contact_cost [--repeat 2] [--quick]
+    python -m benchmarks.contact_cost [--quick] [--scenes NAME,...] [--repeat 1]
 
-Scenes: the paper's feedback web (cases/paper_feedback_web.toml) folded with a 5 mm layer
-gap (``fold.layer_gap``), as it is (3 220 elements, dt 4.6e-5 s, its first 0.1 s: 2 200
-steps) and meshed at 0.5 m (79 100 elements, dt 9.2e-6 s, its first 5 ms: 545 steps), on
-one thread. Variants: the plain step loop, the audit (``audit.crossings``) and the contact
-(``contact.cables``, which runs the audit too), at the default skin and at other skins.
-Variants run round-robin (A B C A B C), ``repeat`` times, fastest kept; the time is the
-step loop's (``RunResult.loop_s``: the compiled loop and the list rebuilds between its
-calls, not the compile). Writes benchmarks/results/contact_cost.json and .png.
+Scenes (docs/contact.md, docs/performance.md), each folded with a 5 mm layer gap
+(``fold.layer_gap``), one thread:
+
+- ``feedback_0.6``: cases/paper_feedback_web.toml over its first 0.6 s (the coiled start and
+  the unfolding of the arms: the stacked layers close together);
+- ``feedback_2``: the same over 2 s (the arms out, breathing);
+- ``free_tilt_2``: cases/paper_free_web.toml on a free hub tilted by 5 m/s at the tips
+  (docs/contact.md's ``free_tilt``) over 2 s: plain and contact only;
+- ``--quick``: ``feedback_0.1``, the first 0.1 s (a minute).
+
+Variants: the plain step loop, the audit (``audit.crossings``) and the contact
+(``contact.cables``, which runs the audit too), as a user turns them on (the case's keys,
+``run.features.features_of``). The variants of a scene run round-robin (A B C, ``repeat``
+times, fastest kept) after one short run of each that compiles or loads its loop. The time
+is the step loop's (``RunResult.loop_s``: the compiled loop and the list rebuilds between
+its calls, not the compile). Beside it: the seconds in the list's rebuilds (the broad phase,
+timed around ``CrossingAudit.build``), the list's length at the end, the rebuild count, the
+skin, the crossings counted and the fail-safe's impulses, so that the per-pair cost of the
+remaining step can be worked out (docs/performance.md). Writes
+benchmarks/results/contact_cost.json and .png, with the machine (CPU model, ISA, load).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 from benchmarks.common import machine
 from spinweb_fe import case as case_mod
 from spinweb_fe.case.scene import prepare
-from spinweb_fe.record.contact import CableContact, cable_radius
 from spinweb_fe.record.crossings import CrossingAudit
+from spinweb_fe.run.features import features_of
 from spinweb_fe.run.loop import Schedule, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results"
-CASE = ROOT / "cases" / "paper_feedback_web.toml"
+GAP = ["fold.layer_gap=0.005", "output.frame_dt=0"]
+TILT = ['hub.motion="free"', 'perturbation.shape="tilt"', "perturbation.vz_amplitude=5"]
+#: name -> (case, keys, end [s], variants)
+SCENES = {
+    "feedback_0.1": ("paper_feedback_web", [], 0.1, ("plain", "audit", "contact")),
+    "feedback_0.6": ("paper_feedback_web", [], 0.6, ("plain", "audit", "contact")),
+    "feedback_2": ("paper_feedback_web", [], 2.0, ("plain", "audit", "contact")),
+    "free_tilt_2": ("paper_free_web", TILT, 2.0, ("plain", "contact")),
+}
+FULL = ("feedback_0.6", "feedback_2", "free_tilt_2")
+MODES = {"plain": [], "audit": ["audit.crossings=true"],
+         "contact": ["audit.crossings=true", "contact.cables=true"]}
 
-#: (name, overrides, end [s], skins to try besides the default)
-SCENES = (("paper web, 3 220 elements", [], 0.1, (0.25, 1.0)),
-          ("0.5 m mesh, 79 100 elements", ["web.mesh_width=0.5"], 0.005, (0.02, 0.05)))
+
+class _BuildClock:
+    """Seconds spent in :meth:`CrossingAudit.build` (the broad phase) while active."""
+
+    def __init__(self):
+        self.seconds, self.calls = 0.0, 0
+        self._orig = CrossingAudit.build
+
+    def __enter__(self):
+        orig, clock = self._orig, self
+
+        def build(audit, *a, **k):
+            t0 = time.perf_counter()
+            try:
+                return orig(audit, *a, **k)
+            finally:
+                clock.seconds += time.perf_counter() - t0
+                clock.calls += 1
+
+        CrossingAudit.build = build
+        return self
+
+    def __exit__(self, *exc):
+        CrossingAudit.build = self._orig
 
 
-def run(overrides, end, variant, skin):
-    """Loop seconds, steps and what the audit and contact saw for one variant."""
-    case = case_mod.load(CASE, ["fold.layer_gap=0.005", f"time.end={end}",
-                                "output.frame_dt=0", *overrides])
+def run(case_name: str, keys: list, end: float, variant: str) -> dict:
+    """Loop seconds, steps and what the audit and the contact saw for one variant."""
+    case = case_mod.load(ROOT / "cases" / f"{case_name}.toml",
+                         [*GAP, *keys, *MODES[variant], f"time.end={end}"])
     scene = prepare(case)
-    audit = contact = None
-    if variant != "plain":
-        audit = CrossingAudit(scene.model, skin)
-    if variant == "contact":
-        contact = CableContact(scene.model, cable_radius(case, scene.model), audit=audit)
-    features = [f for f in (audit, contact) if f is not None]
-    res = simulate(scene.model, scene.control, scene.state, scene.dt, Schedule(end, 1e-3),
-                   threads=1, features=features)
+    features = features_of(scene.model, scene.state, case)
+    with _BuildClock() as clock:
+        res = simulate(scene.model, scene.control, scene.state, scene.dt, Schedule(end, 1e-3),
+                       threads=1, features=features)
     out = {"loop_s": res.loop_s, "steps": res.steps, "elements": scene.model.n_elems,
-           "dt": scene.dt}
-    if audit is not None:
-        out.update(skin=audit.skin, crossings=audit.count, rebuilds=audit.rebuilds,
-                   pairs_last=int(len(audit.pairs)))
+           "dt": scene.dt, "end": end, "build_s": clock.seconds}
+    named = {f.name: f for f in features}
+    if "crossings" in named:
+        au = named["crossings"]
+        out.update(skin=au.skin, base_skin=au.base_skin, crossings=au.count,
+                   rebuilds=au.rebuilds, pairs_last=int(len(au.pairs)))
+    if "contact" in named:
+        co = named["contact"]
+        out.update(impulses=co.impulses, impulses_after_reactions=co.impulses_after_reactions)
     return out
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=2)
-    ap.add_argument("--quick", action="store_true", help="the small web, default skin only")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--quick", action="store_true", help="the first 0.1 s of the feedback web")
+    ap.add_argument("--scenes", help=f"comma-separated, of {', '.join(SCENES)}")
+    ap.add_argument("--out", default=str(OUT / "contact_cost.json"))
     args = ap.parse_args(argv)
-    scenes = SCENES[:1] if args.quick else SCENES
+    names = (["feedback_0.1"] if args.quick else
+             args.scenes.split(",") if args.scenes else list(FULL))
+    info = {"machine_start": machine(), "threads": 1, "repeat": args.repeat}
     results = []
-    for name, overrides, end, skins in scenes:
-        variants = [("plain", None), ("audit", None), ("contact", None)]
-        if not args.quick:
-            variants += [(v, s) for s in skins for v in ("audit", "contact")]
+    for name in names:
+        case_name, keys, end, variants = SCENES[name]
+        for v in variants:  # compile (or load from the cache) each variant's loop
+            run(case_name, keys, min(end, 2e-3), v)
         best = {}
-        for v, s in variants:  # compile / load every variant's loop outside the timing
-            run(overrides, min(end, 2e-3), v, s)
         for _ in range(args.repeat):
-            for v, s in variants:
-                r = run(overrides, end, v, s)
-                key = (v, s)
-                if key not in best or r["loop_s"] < best[key]["loop_s"]:
-                    best[key] = r
-        plain = best[("plain", None)]
-        per_plain = plain["loop_s"] / plain["steps"]
-        for (v, s), r in best.items():
-            r.update(scene=name, variant=v, skin_given=s,
+            for v in variants:
+                r = run(case_name, keys, end, v)
+                if v not in best or r["loop_s"] < best[v]["loop_s"]:
+                    best[v] = r
+        per_plain = best["plain"]["loop_s"] / best["plain"]["steps"]
+        for v, r in best.items():
+            r.update(scene=name, case=case_name, keys=keys, variant=v,
                      us_per_step=1e6 * r["loop_s"] / r["steps"],
                      ratio=r["loop_s"] / r["steps"] / per_plain)
             results.append(r)
-            print(f"{name:30s} {v:8s} skin {r.get('skin', '-')!s:6s} "
-                  f"{r['us_per_step']:9.1f} us/step  x{r['ratio']:.2f}  "
-                  f"crossings {r.get('crossings', '-')}  rebuilds {r.get('rebuilds', '-')}")
-    OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "contact_cost.json").write_text(json.dumps({"machine": machine(), "threads": 1,
-                                                       "results": results}, indent=1))
-    plot(results, OUT / "contact_cost.png")
+            print(f"{name:14s} {v:8s} {r['us_per_step']:9.1f} us/step  x{r['ratio']:7.1f}  "
+                  f"rebuilds {r.get('rebuilds', '-')} ({r['build_s']:.1f} s)  "
+                  f"pairs {r.get('pairs_last', '-')}  crossings {r.get('crossings', '-')}",
+                  flush=True)
+    info.update(machine_end=machine(), results=results)
+    path = Path(args.out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(info, indent=1))
+    plot(results, path.with_suffix(".png"))
 
 
 def plot(results, path):
@@ -97,17 +146,21 @@ def plot(results, path):
     import matplotlib.pyplot as plt
 
     scenes = list(dict.fromkeys(r["scene"] for r in results))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 3.6))
-    axes = [axes] if len(scenes) == 1 else axes
-    for ax, scene in zip(axes, scenes):
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4 * len(scenes), 3.6), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
         rows = [r for r in results if r["scene"] == scene]
-        labels = [r["variant"] + ("" if r["variant"] == "plain" else f"\nskin {r['skin']:g} m")
-                  for r in rows]
         ax.bar(range(len(rows)), [r["ratio"] for r in rows], color="tab:blue")
-        ax.set_xticks(range(len(rows)), labels, fontsize=7)
+        ax.bar(range(len(rows)), [r["build_s"] / r["steps"] * 1e6 / (r["us_per_step"] / r["ratio"])
+                                  for r in rows], color="tab:orange", label="list rebuilds")
+        ax.set_xticks(range(len(rows)), [r["variant"] for r in rows])
+        ax.set_yscale("log")
         ax.set_ylabel("time per step / plain step")
-        ax.set_title(scene, fontsize=9)
-        ax.axhline(1.0, color="k", lw=0.5)
+        ax.set_title(f"{scene}: {rows[0]['elements']} elements, {rows[0]['steps']} steps",
+                     fontsize=9)
+        for i, r in enumerate(rows):
+            ax.annotate(f"x{r['ratio']:.1f}", (i, r["ratio"]), ha="center", va="bottom",
+                        fontsize=8)
+    axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -62,8 +62,13 @@ def summary_lines(h5) -> list[str]:
     hist = h5.get("history")
     if hist is None or "utilisation" not in hist or hist["utilisation"].shape[0] == 0:
         return []
-    t = hist["time"][()]
-    u = hist["utilisation"][()]
+    # a live file (a run still writing) may hold one more row in a column read first: every
+    # column is read to the shortest one's length
+    names = [c for c in ("time", "utilisation", "max_strain", "max_strain_element",
+                         "broken_elements", "rupture_dissipation") if c in hist]
+    rows = min(hist[c].shape[0] for c in names)
+    hist = {c: hist[c][:rows] for c in names}
+    t, u = hist["time"], hist["utilisation"]
     k = int(np.argmax(u))
     eps_f = failure_strain_of(h5)
     head = f"failure strain {eps_f:.4g}; " if eps_f is not None else ""
