@@ -30,10 +30,10 @@ demo-free: $(STAMP)
 	@echo "picture: out/demo_free/web.png   plot of what the verdict judged: out/demo_free/plot.png"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal
 
 validate: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -m slow -n 2 --dist worksteal
 
 mutate: $(STAMP)
 	$(BIN)/python tests/mutate.py

@@ -60,18 +60,20 @@ class _BuildClock:
 
     def __init__(self):
         self.seconds, self.calls = 0.0, 0
+        self.lists = []  # (step, pairs listed) after each build
         self._orig = CrossingAudit.build
 
     def __enter__(self):
         orig, clock = self._orig, self
 
-        def build(audit, *a, **k):
+        def build(audit, state, *a, **k):
             t0 = time.perf_counter()
             try:
-                return orig(audit, *a, **k)
+                return orig(audit, state, *a, **k)
             finally:
                 clock.seconds += time.perf_counter() - t0
                 clock.calls += 1
+                clock.lists.append((int(state.step[0]), len(audit.pairs)))
 
         CrossingAudit.build = build
         return self
@@ -91,6 +93,9 @@ def run(case_name: str, keys: list, end: float, variant: str) -> dict:
                        threads=1, features=features)
     out = {"loop_s": res.loop_s, "steps": res.steps, "elements": scene.model.n_elems,
            "dt": scene.dt, "end": end, "build_s": clock.seconds}
+    if clock.lists:  # pair-steps: the listed pairs summed over the steps they were listed
+        marks = [s for s, _ in clock.lists[1:]] + [res.steps]
+        out["pair_steps"] = float(sum(n * (b - a) for (a, n), b in zip(clock.lists, marks)))
     named = {f.name: f for f in features}
     if "crossings" in named:
         au = named["crossings"]
@@ -128,10 +133,15 @@ def main(argv=None):
             r.update(scene=name, case=case_name, keys=keys, variant=v,
                      us_per_step=1e6 * r["loop_s"] / r["steps"],
                      ratio=r["loop_s"] / r["steps"] / per_plain)
+            if r.get("pair_steps"):  # what the rest of the step costs per listed pair
+                rest = r["loop_s"] - r["build_s"] - per_plain * r["steps"]
+                r["ns_per_pair_step"] = 1e9 * rest / r["pair_steps"]
+                r["pairs_mean"] = r["pair_steps"] / r["steps"]
             results.append(r)
             print(f"{name:14s} {v:8s} {r['us_per_step']:9.1f} us/step  x{r['ratio']:7.1f}  "
                   f"rebuilds {r.get('rebuilds', '-')} ({r['build_s']:.1f} s)  "
-                  f"pairs {r.get('pairs_last', '-')}  crossings {r.get('crossings', '-')}",
+                  f"pairs {r.get('pairs_mean', 0):.0f} mean  {r.get('ns_per_pair_step', 0):.1f} ns/pair  "
+                  f"crossings {r.get('crossings', '-')}",
                   flush=True)
     info.update(machine_end=machine(), results=results)
     path = Path(args.out)
