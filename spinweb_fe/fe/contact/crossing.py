@@ -78,19 +78,24 @@ def _volume_at(a0, a1, b0, b1, c0, c1, d0, d1, t, w):
     return _volume(w[0], w[1], w[2], w[3])
 
 
+@njit(inline="always")
+def _gram(w):
+    """The Gram terms of the lines of segments w[0] w[1] and w[2] w[3]: (a, b, c, d, e) =
+    (d1.d1, d1.d2, d2.d2, d1.r, d2.r), d1 and d2 the segments, r = w[0] - w[2]."""
+    d10, d11, d12 = w[1, 0] - w[0, 0], w[1, 1] - w[0, 1], w[1, 2] - w[0, 2]
+    d20, d21, d22 = w[3, 0] - w[2, 0], w[3, 1] - w[2, 1], w[3, 2] - w[2, 2]
+    r0, r1, r2 = w[0, 0] - w[2, 0], w[0, 1] - w[2, 1], w[0, 2] - w[2, 2]
+    return (d10 * d10 + d11 * d11 + d12 * d12, d10 * d20 + d11 * d21 + d12 * d22,
+            d20 * d20 + d21 * d21 + d22 * d22, d10 * r0 + d11 * r1 + d12 * r2,
+            d20 * r0 + d21 * r1 + d22 * r2)
+
+
 @njit(cache=True)
 def _lines_meet(w):
     """The lines of segments w[0] w[1] and w[2] w[3] (coplanar) meet inside both: the
     parameters of their closest points in [0, 1) x [0, 1) (half-open: a crossing exactly
     through a shared end is counted by one of the two elements). Parallel lines: no."""
-    d10, d11, d12 = w[1, 0] - w[0, 0], w[1, 1] - w[0, 1], w[1, 2] - w[0, 2]
-    d20, d21, d22 = w[3, 0] - w[2, 0], w[3, 1] - w[2, 1], w[3, 2] - w[2, 2]
-    r0, r1, r2 = w[0, 0] - w[2, 0], w[0, 1] - w[2, 1], w[0, 2] - w[2, 2]
-    a = d10 * d10 + d11 * d11 + d12 * d12
-    b = d10 * d20 + d11 * d21 + d12 * d22
-    c = d20 * d20 + d21 * d21 + d22 * d22
-    d = d10 * r0 + d11 * r1 + d12 * r2
-    e = d20 * r0 + d21 * r1 + d22 * r2
+    a, b, c, d, e = _gram(w)
     den = a * c - b * b
     if den <= 1e-14 * a * c:
         return False
@@ -117,16 +122,11 @@ def _meets(w, sep):
         return True
     if sep <= 0.0:
         return False
-    d10, d11, d12 = w[1, 0] - w[0, 0], w[1, 1] - w[0, 1], w[1, 2] - w[0, 2]
-    d20, d21, d22 = w[3, 0] - w[2, 0], w[3, 1] - w[2, 1], w[3, 2] - w[2, 2]
-    r0, r1, r2 = w[0, 0] - w[2, 0], w[0, 1] - w[2, 1], w[0, 2] - w[2, 2]
-    a = d10 * d10 + d11 * d11 + d12 * d12
-    b = d10 * d20 + d11 * d21 + d12 * d22
-    c = d20 * d20 + d21 * d21 + d22 * d22
+    a, b, c, d, e = _gram(w)
     den = a * c - b * b
     if den > 1e-14 * a * c:
-        s = (b * (d20 * r0 + d21 * r1 + d22 * r2) - c * (d10 * r0 + d11 * r1 + d12 * r2)) / den
-        u = (a * (d20 * r0 + d21 * r1 + d22 * r2) - b * (d10 * r0 + d11 * r1 + d12 * r2)) / den
+        s = (b * e - c * d) / den
+        u = (a * e - b * d) / den
         if s == 1.0 or u == 1.0:  # exactly at an end: the other element's crossing
             return False
     return _gap_at(w) <= sep
@@ -365,13 +365,21 @@ def boxed_crossings(pairs, elem_nodes, pos0, pos1, box, out_t, out_e, out_f, out
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
         k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
                            pos0[d], pos1[d], times, signs, w, cuts, sep)
-        for i in range(k):
-            if n < out_t.shape[0]:
-                out_t[n] = times[i]
-                out_e[n] = e
-                out_f[n] = f
-                out_s[n] = signs[i]
-            n += 1
+        n = log_crossings(out_t, out_e, out_f, out_s, n, times, signs, k, e, f)
+    return n
+
+
+@njit(inline="always")
+def log_crossings(out_t, out_e, out_f, out_s, n, times, signs, k, e, f):
+    """Append the ``k`` crossings of pair (e, f) (``times``, ``signs``) to the log from
+    entry ``n`` while it has room; the count after them (it goes on past the room)."""
+    for i in range(k):
+        if n < out_t.shape[0]:
+            out_t[n] = times[i]
+            out_e[n] = e
+            out_f[n] = f
+            out_s[n] = signs[i]
+        n += 1
     return n
 
 

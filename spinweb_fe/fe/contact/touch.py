@@ -37,7 +37,8 @@ from numba import njit
 from spinweb_fe.fe.contact.bounds import (ROUND, StepMotion, bound_now, pair_motion, set_level,
                                           step_motion)
 from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
-from spinweb_fe.fe.contact.crossing import SEP, apart, boxed_crossings, pair_crossings
+from spinweb_fe.fe.contact.crossing import (SEP, apart, boxed_crossings, log_crossings,
+                                            pair_crossings)
 from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import body_snapshot
 from spinweb_fe.fe.contact.penalty import contact_push, contact_row
@@ -142,13 +143,7 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
         if test and not apart(pos0, pos1, a, b, c, d, sep):
             k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
                                pos0[d], pos1[d], times, signs, w, cuts, sep)
-            for i in range(k):
-                if n < out_t.shape[0]:
-                    out_t[n] = times[i]
-                    out_e[n] = e
-                    out_f[n] = f
-                    out_s[n] = signs[i]
-                n += 1
+            n = log_crossings(out_t, out_e, out_f, out_s, n, times, signs, k, e, f)
         set_level(level, mo, p, e, f, closest_nodes(pos1, a, b, c, d)[2] - slack)
     return n
 
