@@ -58,6 +58,8 @@ class CableContact(Feature):
     def __init__(self, model, radius: float, kappa: float = KAPPA, friction: float = 0.0,
                  audit=None):
         self.audit = audit
+        if audit is not None:  # a fixed skin: the contact pays per listed pair (issue #42)
+            audit.growth = 1.0
         self.radius, self.kappa, self.mu = float(radius), float(kappa), float(friction)
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.force = np.zeros((model.n_nodes, 3))

@@ -109,6 +109,9 @@ class CrossingAudit(Feature):
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.skin = float(skin) if skin is not None else default_skin(model)
         self.base_skin = self.skin  # the skin adapts to the web's speed (:meth:`adapt`)
+        #: the widest skin, per starting skin (1: fixed; the contact fixes it: its passes
+        #: cost 60-110 ns a listed pair, so a longer list costs it more than the rebuilds)
+        self.growth = SKIN_GROWTH
         self._built_at = 0
         self.touch = float(touch)
         self.count, self.rebuilds = 0, 0
@@ -223,9 +226,9 @@ class CrossingAudit(Feature):
         skin sets only how many pairs each step looks at and how often the list is built."""
         steps = step - self._built_at
         active = max(1, int(np.count_nonzero(self.kernel_data.active)))
-        if (steps < SOON and self.skin < SKIN_GROWTH * self.base_skin
+        if (steps < SOON and self.skin < self.growth * self.base_skin
                 and len(self.pairs) < PAIRS_MAX * active):
-            self.skin = min(SKIN_STEP * self.skin, SKIN_GROWTH * self.base_skin)
+            self.skin = min(SKIN_STEP * self.skin, self.growth * self.base_skin)
         elif steps > LATE and self.skin > self.base_skin:
             self.skin = max(self.skin / SKIN_STEP, self.base_skin)
 
