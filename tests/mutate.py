@@ -64,6 +64,13 @@ AUDIT_TESTS = ("tests/test_crossing_audit.py",)
 ZONE_TESTS = ("tests/test_impact_zones.py",)
 LINK_TESTS = ("tests/test_linking.py", "tests/test_linking_monitor.py")
 LAYER_TESTS = ("tests/test_layer_gap.py",)
+#: issue #47's guards (fast files; docs/testing.md, "Guards of the round's features")
+G_VERDICT = ("tests/test_guards_verdicts.py",)
+G_START = ("tests/test_guards_start.py",)
+G_DEVICES = ("tests/test_guards_devices.py",)
+G_CONTACT = ("tests/test_guards_contact.py",)
+G_SWEEP = ("tests/test_guards_sweep.py",)
+G_REST = ("tests/test_guards_rest.py",)
 
 
 @dataclass(frozen=True)
@@ -474,6 +481,37 @@ MUTANTS = (
     Mutant("layer_gap_half_spacing", "meshgen/layers.py",
            "KAPPA = 1.1", "KAPPA = 0.5",
            "the coil's passes rise half of what keeps them apart", LAYER_TESTS),
+    # ---- issue #47: the round's features, each with a guard of tests/test_guards_*.py
+    Mutant("recoil_reports_worst_arm", "spinweb_fe/record/verdict.py",
+           "    k = int(np.argmax(share[i]))\n",
+           "    k = int(np.argmax(share.max(axis=0)))\n",
+           "re-coil: the arm that fell back farthest reported, not the first to fail", G_VERDICT),
+    Mutant("swing_time_from_run_start", "spinweb_fe/record/verdict.py",
+           "j, when = _first(np.any(out, axis=1), t[i0:])",
+           "j, when = _first(np.any(out, axis=1), t)",
+           "the swing's first failure timed from the run's start, not its window", G_VERDICT),
+    Mutant("swing_reports_worst_arm", "spinweb_fe/record/verdict.py",
+           "arm=int(np.argmax(np.abs(after[j] - mid))), detail=window)",
+           "arm=int(np.argmax(amp)), detail=window)",
+           "swing: the arm of the largest swing reported, not the first out", G_VERDICT),
+    Mutant("overstrain_arm_at_peak", "spinweb_fe/record/verdict.py",
+           "arm_of = int(np.asarray(h[\"max_strain_arm\"])[i])",
+           "arm_of = int(np.asarray(h[\"max_strain_arm\"])[int(np.argmax(u))])",
+           "overstrain: the arm of the peak utilisation, not of the first row above 1",
+           G_VERDICT),
+    Mutant("severity_deployed_share_inverted", "spinweb_fe/record/verdict.py",
+           "r = c.limit / max(c.value, 1e-300) if math.isfinite(c.value) else math.inf",
+           "r = c.value / c.limit if math.isfinite(c.value) else math.inf",
+           "severity: the deployed share as value / limit (a good deployment ranked worst)",
+           G_VERDICT),
+    Mutant("failed_run_not_worst", "spinweb_fe/sweep/report.py",
+           "return math.inf if rows[i][\"status\"] != \"ok\" or sev != sev else sev",
+           "return 0.0 if rows[i][\"status\"] != \"ok\" or sev != sev else sev",
+           "a Monte-Carlo member that failed to run ranked best, not worst", G_VERDICT),
+    Mutant("free_hub_impulse_x_axis", "spinweb_fe/record/verdict.py",
+           "axis_z = np.asarray(h[\"hub_axis\"])[:, 2]",
+           "axis_z = np.asarray(h[\"hub_axis\"])[:, 0]",
+           "a free hub's torque impulse projected on the axis's x part", G_VERDICT),
 )
 
 
