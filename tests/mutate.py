@@ -71,6 +71,7 @@ G_DEVICES = ("tests/test_guards_devices.py",)
 G_CONTACT = ("tests/test_guards_contact.py",)
 G_SWEEP = ("tests/test_guards_sweep.py",)
 G_REST = ("tests/test_guards_rest.py",)
+G_HUB_WORK = ("tests/test_guards_hub_work.py",)
 
 
 @dataclass(frozen=True)
@@ -643,6 +644,11 @@ MUTANTS = (
            "cycles = [tail[w] for w, a in zip(walks, area) if a > area_tol]",
            "cycles = [tail[w] for w, a in zip(walks, area) if abs(a) > area_tol]",
            "the linking check's cells include the web's outer face", LINK_TESTS),
+    Mutant("hub_reaction_work_new_rate", "spinweb_fe/fe/contact/failsafe.py",
+           "work_hub = inertia[0] * dw * (h0.rate[0] + rate[0] + dw) * 0.5",
+           "work_hub = inertia[0] * dw * (rate[0] + rate[0] + dw) * 0.5",
+           "the fixed hub's reaction work paired with its new half-step rate only",
+           G_HUB_WORK),
 )
 
 
