@@ -547,7 +547,7 @@ MUTANTS = (
     Mutant("brake_cap_speed_plus_length", "spinweb_fe/fe/coil/brake.py",
            "cap = min(level, stretch + SLIP_SPEED * v_max * dt)",
            "cap = min(level, stretch + SLIP_SPEED * v_max)",
-           "the brake's slip bound adds a speed to a length", PAYOUT_TESTS),
+           "the brake's slip bound adds a speed to a length", G_DEVICES),
     Mutant("crossing_closed_at_both_ends", "spinweb_fe/fe/contact/crossing.py",
            "return 0.0 <= s < 1.0 and 0.0 <= u < 1.0",
            "return 0.0 <= s <= 1.0 and 0.0 <= u <= 1.0",
