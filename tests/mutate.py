@@ -649,6 +649,11 @@ MUTANTS = (
            "work_hub = inertia[0] * dw * (rate[0] + rate[0] + dw) * 0.5",
            "the fixed hub's reaction work paired with its new half-step rate only",
            G_HUB_WORK),
+    Mutant("verdict_plot_failure_at_start", "spinweb_fe/post/verdict_plot.py",
+           "ax.axvline(crit.time, color=colour, ls=\":\", lw=1.2)",
+           "ax.axvline(0.0 * crit.time, color=colour, ls=\":\", lw=1.2)",
+           "the verdict plots draw a criterion's first failure at the run's start",
+           ("tests/test_plot.py",)),
 )
 
 
