@@ -57,8 +57,9 @@ def test_the_certificates_bound_each_nodes_departure_from_its_chord():
     """Twenty nodes on a ring of 10 m turn rigidly by 0.1 rad over the step (the frame
     follows them); node 0 stays where it is (its path in the frame is an arc: departure
     rho (1 - cos(dtheta / 2)), the bound's turn term rho (dtheta^2 / 8 + |dtheta|^3 / 3)
-    is 1 + 8 |dtheta| / 3 = 1.26x that at the frame's fitted dtheta = 0.097), node 1 moves 5 m out along its radius while turning
-    (the bound's own-displacement term |dtheta| u / 4 is the larger). Every node's
+    is 1 + 8 |dtheta| / 3 = 1.26x that at the frame's fitted dtheta = 0.097), node 1
+    moves 5 m out along its radius while turning (the bound's own-displacement term
+    |dtheta| u / 4 is the larger). Every node's
     sampled departure is within its bound (dev); for nodes 0 and 1 the bound is within
     1.3x and 1.2x of the departure (measured 1.26 and 1.14: a halved turn term leaves node
     0's bound at 0.76 of its departure, a dropped own term node 1's at 0.12)."""
