@@ -148,7 +148,7 @@ MUTANTS = (
     Mutant("thread_block_order_halved", "spinweb_fe/fe/forces.py",
            "            b = order[q]\n", "            b = order[q // 2]\n",
            "threads: element blocks in work.order taken twice, half of them never",
-           ("tests/test_threads.py", "tests/test_strength.py")),
+           ("tests/test_threads.py", "tests/test_strength.py", "tests/test_guards_rest.py")),
     Mutant("helper_phase_types_drift", "spinweb_fe/run/warmup.py",
            "state.strength.broken, types.Omitted(None))),",
            "state.strength.broken, None)),",
