@@ -347,7 +347,7 @@ MUTANTS = (
            "inv_mass[i] = 1.0 / level_mass[lev] if first else 0.0",
            "inv_mass[i] = node_inv_mass[i] if first else 0.0",
            "a bundled level's spine node kicked with its own inverse mass, not the level's",
-           ("tests/test_coil.py",)),
+           ("tests/test_coil.py", "tests/test_guards_rest.py")),
     Mutant("contact_centre_translates_only", "spinweb_fe/fe/hub/body.py",
            "hull[2] = c + dt * (rs.velocity + cross(w, c - rs.position))",
            "hull[2] = c + dt * rs.velocity",

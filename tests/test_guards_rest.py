@@ -255,3 +255,34 @@ def test_two_threads_give_one_threads_bits_on_a_web_without_a_strength_check():
     for key in ("kinetic_energy", "strain_energy", "angular_momentum"):
         assert np.array_equal(h1[key], h2[key]), key
     assert h1["strain_energy"].max() > 0
+
+
+def test_a_released_bundled_level_moves_on_its_spine_with_the_levels_mass():
+    """fe.coil.levels.level_masses for the demo web's bundled levels (as a release gives
+    them): each level's spine node (its first) carries the sum of the level's node masses
+    (summed here from the model's nodes, 1e-12) and the inverse of that sum (the kick's
+    1/m), the level's other nodes neither; released unbundled, every node its own."""
+    from spinweb_fe.fe.coil.levels import level_masses
+
+    sc = prepare(case_mod.load(CASES / "demo.toml", ["stowage.bundle='until_time'",
+                                                     "stowage.bundle_release=0.8"]))
+    m, st = sc.model, sc.state
+    coil, nodes = m.coil, m.nodes
+    lo, hi = coil.arm_ptr[0], coil.arm_ptr[0] + 6
+    for bundled in (True, False):
+        mass, inv = st.node_mass.copy(), st.node_inv_mass.copy()
+        level_masses(coil.level_ptr, coil.level_nodes, coil.level_mass, nodes.mass,
+                     nodes.inv_mass, mass, inv, lo, hi, bundled)
+        shared = 0
+        for lev in range(lo, hi):
+            ids = coil.level_nodes[coil.level_ptr[lev]:coil.level_ptr[lev + 1]]
+            if not bundled:
+                assert np.array_equal(mass[ids], nodes.mass[ids])
+                assert np.array_equal(inv[ids], nodes.inv_mass[ids])
+                continue
+            total = nodes.mass[ids].sum()
+            assert mass[ids[0]] == pytest.approx(total, rel=1e-12)
+            assert inv[ids[0]] * total == pytest.approx(1.0, rel=1e-12)
+            assert np.all(mass[ids[1:]] == 0) and np.all(inv[ids[1:]] == 0)
+            shared += len(ids) > 1
+        assert not bundled or shared >= 3
