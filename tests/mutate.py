@@ -21,7 +21,7 @@ cache files each fe/ mutant wrote (0 would mean a stale cache, flagged).
 
 Usage (from the project root; CPU heavy, mutants run one at a time)::
 
-    .venv/bin/python tests/mutate.py              # every mutant (20-45 min on 2 cores)
+    .venv/bin/python tests/mutate.py              # every mutant (hours on 2 cores)
     .venv/bin/python tests/mutate.py --only ID,ID # some of them (the baseline still runs)
     .venv/bin/python tests/mutate.py --list       # the list, nothing run
 
