@@ -206,9 +206,9 @@ MUTANTS = (
            "_, w_new = eval_control(law, t + 0.5 * dt, w_old)",
            "_, w_new = eval_control(law, t, w_old)",
            "prescribed rate imposed at t_n instead of the half step"),
-    Mutant("tied_velocity_sign", "spinweb_fe/fe/hub/axis.py",
+    Mutant("tied_velocity_sign", "spinweb_fe/fe/hub/rigid.py",
            "vel[i, 0] = -omega * y", "vel[i, 0] = omega * y",
-           "tied nodes' velocity not omega e_z x x"),
+           "tied and held nodes' velocity not omega e_z x x"),
     # ---- control laws (fe/control.py)
     Mutant("feedback_sign", "spinweb_fe/fe/control.py",
            "return False, p[0] * (1.0 - omega / p[1])",

@@ -34,6 +34,24 @@ def axis_pose(theta, omega):
     return Pose(R, np.zeros(3), np.zeros(3), np.zeros(3), w)
 
 
+@njit(inline="always")
+def arm_target(coil, cs, k, elems, mv, pose, t, dt):
+    """Arm k's level at its front and where its line at D goes in this step (its arm
+    coordinate); level -1 when the arm's device does nothing now: every level gone, a coil
+    not yet free of its hold, or a target that does not move the line on (its speed then
+    0)."""
+    lev = coil.arm_ptr[k] + cs.front[k]
+    if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
+        return -1, 0.0
+    if cs.front[k] == 0:
+        return lev, cs.s_dev[k]
+    s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
+    if s_new >= cs.s_dev[k]:
+        cs.dev_speed[k] = 0.0
+        return -1, 0.0
+    return lev, s_new
+
+
 @njit(cache=True)
 def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
     """The reels or brakes of a scene on a fixed axis at the end of a step (fe.coil.payout): each
@@ -50,16 +68,9 @@ def axis_devices(coil, cs, elems, nodes, hub, mv, hs, t, dt):
     steps = np.empty((coil.test_elem.shape[0] + 1, 3))
     moved = False
     for k in range(coil.arm_ptr.shape[0] - 1):
-        lev = coil.arm_ptr[k] + cs.front[k]
-        if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
+        lev, s_new = arm_target(coil, cs, k, elems, mv, pose, t, dt)
+        if lev < 0:
             continue
-        if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
-            if s_new >= cs.s_dev[k]:
-                cs.dev_speed[k] = 0.0
-                continue
-        else:
-            s_new = cs.s_dev[k]
         # the held nodes the energies count turn with the hub's rate now (every held node
         # and the tied ones follow once, after the last arm)
         place_levels(coil.arm_ptr, cs.front, coil.level_ptr, coil.level_nodes, coil.level_ref,
@@ -116,16 +127,9 @@ def body_devices(coil, body, cs, elems, nodes, hub, rs, mv, hs, t, dt):
     out = no_reaction()
     steps = np.empty((coil.test_elem.shape[0] + 1, 3))
     for k in range(coil.arm_ptr.shape[0] - 1):
-        lev = coil.arm_ptr[k] + cs.front[k]
-        if lev >= coil.arm_ptr[k + 1] or (cs.front[k] == 0 and t < coil.arm_hold[k]):
+        lev, s_new = arm_target(coil, cs, k, elems, mv, pose, t, dt)
+        if lev < 0:
             continue
-        if cs.front[k] > 0:
-            s_new = device_target(coil, cs, k, lev, elems, mv, pose, t, dt)
-            if s_new >= cs.s_dev[k]:
-                cs.dev_speed[k] = 0.0
-                continue
-        else:
-            s_new = cs.s_dev[k]
         R = pose.rot.copy()
         steps[0, 0] = -1.0
         e0 = (line_energy(coil, cs, k, elems, mv, lev, lev)

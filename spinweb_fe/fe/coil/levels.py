@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.choice import Choice, Param, registry
+from spinweb_fe.fe.hub.rigid import turn_node
 
 
 def _release_fraction(tables):
@@ -261,15 +262,7 @@ def place_levels(arm_ptr, front, level_ptr, level_nodes, level_ref, pos, vel, th
     a = max(lo, arm_ptr[k] + front[k])
     b = min(hi + 1, arm_ptr[k + 1])
     for p in range(level_ptr[a] if a < b else 0, level_ptr[b] if a < b else 0):
-        i = level_nodes[p]
-        x = c * level_ref[p, 0] - s * level_ref[p, 1]
-        y = s * level_ref[p, 0] + c * level_ref[p, 1]
-        pos[i, 0] = x
-        pos[i, 1] = y
-        pos[i, 2] = level_ref[p, 2]
-        vel[i, 0] = -omega * y
-        vel[i, 1] = omega * x
-        vel[i, 2] = 0.0
+        turn_node(pos, vel, level_nodes[p], level_ref[p], c, s, omega)
 
 
 @njit(cache=True)

@@ -24,7 +24,7 @@ from spinweb_fe.fe.coil.bundles import gather_bundles, scatter_bundles
 from spinweb_fe.fe.coil.levels import held_moment
 from spinweb_fe.fe.control import eval_control
 from spinweb_fe.fe.hub.contact import contact_node
-from spinweb_fe.fe.hub.rigid import body_loads
+from spinweb_fe.fe.hub.rigid import body_loads, turn_node
 from spinweb_fe.fe.tidal import axis_hub_tidal, node_tidal, tidal_power
 
 
@@ -73,15 +73,7 @@ def place_rigid(pos, vel, idx, ref, theta, omega):
     c = np.cos(theta)
     s = np.sin(theta)
     for k in range(idx.shape[0]):
-        i = idx[k]
-        x = c * ref[k, 0] - s * ref[k, 1]
-        y = s * ref[k, 0] + c * ref[k, 1]
-        pos[i, 0] = x
-        pos[i, 1] = y
-        pos[i, 2] = ref[k, 2]
-        vel[i, 0] = -omega * y
-        vel[i, 1] = omega * x
-        vel[i, 2] = 0.0
+        turn_node(pos, vel, idx[k], ref[k], c, s, omega)
 
 
 @njit(cache=True, no_cpython_wrapper=True)

@@ -393,3 +393,17 @@ def rigid_start(model, cs, omega: float, tilt_rate: float = 0.0) -> RigidState:
     rs.velocity[:] = np.cross(w, rs.com)  # the hub centre at rest
     rs.momentum[:] = rs.inertia @ w
     return rs
+
+
+@njit(inline="always")
+def turn_node(pos, vel, i, ref, c, s, omega):
+    """Node ``i`` moves with a hub turned by the angle whose cosine and sine are ``c``,
+    ``s``, spinning at ``omega`` [rad/s] about z: x = R x_hub (``ref`` (3,)), v = omega z x x."""
+    x = c * ref[0] - s * ref[1]
+    y = s * ref[0] + c * ref[1]
+    pos[i, 0] = x
+    pos[i, 1] = y
+    pos[i, 2] = ref[2]
+    vel[i, 0] = -omega * y
+    vel[i, 1] = omega * x
+    vel[i, 2] = 0.0
