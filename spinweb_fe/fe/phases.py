@@ -172,10 +172,11 @@ def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
     fresh, clean = True, True
     for k in range(REACTIONS):
         place = k < REACTIONS - 1
-        if axis is not None:
+        n, left = 0, 0
+        if axis is not None:  # (two ifs: an else would compile the free hub's on an axis)
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, hs.rate, hs.inertia,
                                       None, hs.angle[0], k > 0, place)
-        else:
+        if body is not None:
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
                                       hs.angle[0], k > 0, place)
         took = contact.hub0.took[0]

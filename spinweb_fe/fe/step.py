@@ -214,9 +214,11 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         record = step % rec.every == 0
         t = step * dt
         holding = any_held(arm_ptr, front)
+        # (two ifs, not if/else: numba prunes a branch only on an argument that is None, so
+        # an else of `axis is not None` would compile the free hub's calls on a fixed axis)
         if axis is not None:
             touch_begin(audit, contact, pos, vel, inv_mass, dt, hub_rate, None, hub_angle[0])
-        else:
+        if body is not None:
             touch_begin(audit, contact, pos, vel, inv_mass, dt, None, rs, hub_angle[0])
         # forces at x_n
         se, tmax, pdamp = element_pass(elems, links, strength, ss, pos, vel, work, record, dt,

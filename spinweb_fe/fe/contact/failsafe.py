@@ -51,10 +51,10 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
                           ck.mu)
         ck.vel2[:] = vel
-    if rate is not None:
-        hub = axis_map(theta - h0.angle[0])
-    else:
+    if body is not None:  # (this way round: numba prunes the body's branch on an axis)
         hub = body_map(body, h0.centre, h0.quaternion)
+    else:
+        hub = axis_map(theta - h0.angle[0])
     if again:
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, None, ZONE_ROUNDS, hub,
