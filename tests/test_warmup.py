@@ -53,7 +53,9 @@ def fresh_env(tmp_path, **extra):
     return env
 
 
-@pytest.mark.parametrize("threads", [1, 2])
+# (two threads, a second cold compile of the demo's whole loop, in make validate: one
+# thread's run kills the phase-type mutant of tests/mutate.py as well)
+@pytest.mark.parametrize("threads", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
     """With the helper's phases compiled first (their types as phase_jobs builds them), the
     step loop's cold compile compiles none of them again: it loads each from the cache. A
