@@ -528,6 +528,12 @@ MUTANTS = (
     Mutant("helper_compiles_nothing", "spinweb_fe/run/warmup.py",
            "            fn.compile(sig)\n", "            pass\n",
            "the compile helper forks and compiles nothing", G_START),
+    Mutant("settle_compiles_the_dead_hub", "spinweb_fe/fe/phases.py",
+           "        if body is not None:\n            n, left = contact_resolve(",
+           "        else:\n            n, left = contact_resolve(",
+           "the contact's settle on a fixed axis compiles the free hub's passes too (an else "
+           "of 'axis is not None': 14 s more of every cold contact compile)",
+           ("tests/test_architecture.py",)),
     Mutant("helper_never_stopped", "spinweb_fe/run/warmup.py",
            "                os.kill(pid, signal.SIGTERM)\n", "                pass\n",
            "the compile helper is left compiling after the loop is compiled", G_START),

@@ -262,3 +262,47 @@ def test_the_event_loop_names_no_feature():
     fn = ast.parse(inspect.getsource(loop.simulate)).body[0]
     code = fn.end_lineno - fn.body[0].end_lineno  # the lines after its docstring
     assert code <= 90, f"simulate has {code} lines of code"
+
+
+#: (function, parameter): an else after `if parameter is not None` that is meant, and cheap
+#: (a copy of x_n; the fixed axis's turn as a 4 x 3 map)
+DEAD_ELSE_ALLOWED = {("touch_begin", "audit"), ("contact_resolve", "body")}
+
+
+def dead_else_branches(tree) -> list:
+    """(function, parameter, line) of each ``if P is not None: ... else: ...`` (or ``A if P
+    is not None else B``) on a parameter P of a jitted function. numba prunes a branch only
+    when its test is known from the types, and for ``P is not None`` that is only when P is
+    None: with P given the else is typed and compiled too, with every function it calls (an
+    else of ``axis is not None`` compiled the free hub's contact passes into every
+    fixed-axis run). Two ifs, on the two parameters, prune instead."""
+    found = []
+    for fn in ast.walk(tree):
+        if not (isinstance(fn, ast.FunctionDef) and _jitted(fn)):
+            continue
+        params = {a.arg for a in fn.args.args + fn.args.kwonlyargs}
+        for node in ast.walk(fn):
+            if not (isinstance(node, (ast.If, ast.IfExp)) and node.orelse):
+                continue
+            t = node.test
+            if (isinstance(t, ast.Compare) and len(t.ops) == 1
+                    and isinstance(t.ops[0], ast.IsNot) and isinstance(t.left, ast.Name)
+                    and t.left.id in params and isinstance(t.comparators[0], ast.Constant)
+                    and t.comparators[0].value is None):
+                found.append((fn.name, t.left.id, node.lineno))
+    return found
+
+
+def test_no_else_on_a_given_argument():
+    """No jitted function has an else after ``if P is not None`` on its parameter P (see
+    :func:`dead_else_branches`), but for the few of DEAD_ELSE_ALLOWED; the reader finds the
+    pattern, in both forms, and not the two-if form."""
+    bad = [(name, *hit) for name, p in library_modules().items()
+           for hit in dead_else_branches(ast.parse(p.read_text()))
+           if hit[:2] not in DEAD_ELSE_ALLOWED]
+    assert not bad, bad
+    probe = ast.parse("@njit\ndef f(axis, body):\n    if axis is not None:\n        a = 1\n"
+                      "    else:\n        a = 2\n    b = 1 if body is not None else 2\n"
+                      "    if axis is not None:\n        a = 3\n    if body is not None:\n"
+                      "        a = 4\n    return a + b\n")
+    assert [h[:2] for h in dead_else_branches(probe)] == [("f", "axis"), ("f", "body")]
