@@ -80,7 +80,7 @@ class Recording(NamedTuple):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def checks_strength(strength):
-    """Whether the kernel's ``strength`` checks any element (None: no, at compile time)."""
+    """Whether the kernel's ``strength`` checks any element (empty or None: no)."""
     if strength is None:
         return False
     return strength.fail.shape[0] > 0
@@ -95,9 +95,11 @@ def element_pass(elems, links, strength, ss, pos, vel, work, record, dt, threads
     point as it holds them (fe.coil.payout; ``devices`` the coil, None without one, ``cs`` its
     state), then their sum per node. Returns (strain energy, max tension, damping power).
 
-    ``strength`` None (no strength check) and ``threads`` None (one thread) are decided by
-    numba from the argument types, before it types the branches: a scene compiles only the
-    passes it can take (the strength and thread kernels cost seconds of compile time)."""
+    ``strength`` (fe.rupture.Strength) with no element (no failure strain) takes the plain
+    element pass, chosen at run time (the model's kernel always hands the strength data, so
+    that scenes with and without it share one compiled loop); None, from a direct caller,
+    compiles no strength pass. ``threads`` None (one thread) is decided by numba from the
+    argument type, before it types the branches: no thread kernel is compiled for it."""
     if strength is not None and strength.fail.shape[0] > 0:  # pruned by numba when None
         se, tmax, pdamp = strength_pass(elems, strength, ss, pos, vel, work, record, dt,
                                         threads)
