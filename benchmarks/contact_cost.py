@@ -100,10 +100,12 @@ def run(case_name: str, keys: list, end: float, variant: str) -> dict:
     if "crossings" in named:
         au = named["crossings"]
         out.update(skin=au.skin, base_skin=au.base_skin, crossings=au.count,
-                   rebuilds=au.rebuilds, pairs_last=int(len(au.pairs)))
+                   rebuilds=au.rebuilds, pairs_last=int(len(au.pairs)),
+                   audit_profile=au.profile.seconds())
     if "contact" in named:
         co = named["contact"]
-        out.update(impulses=co.impulses, impulses_after_reactions=co.impulses_after_reactions)
+        out.update(impulses=co.impulses, impulses_after_reactions=co.impulses_after_reactions,
+                   contact_profile=co.profile.seconds())
     return out
 
 
