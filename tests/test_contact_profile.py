@@ -17,6 +17,7 @@ from spinweb_fe.case.scene import prepare
 from spinweb_fe.fe import step
 from spinweb_fe.fe.contact.clock import SAMPLE
 from spinweb_fe.record.crossings import CrossingAudit
+from spinweb_fe.record.profile import report
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.features import features_of
 from spinweb_fe.run.loop import Schedule, simulate
@@ -140,6 +141,8 @@ def test_written_to_results(tmp_path):
     assert attrs["contact_round0_pairs_read"] == attrs["audit_pairs_read"]
     assert attrs["contact_failsafe_round0_s"] > 0.0 and attrs["audit_certificates_s"] > 0.0
     assert 2.5e8 < attrs["ticks_per_s"] < 2.5e10
+    lines = report(attrs)  # (spinweb info's lines)
+    assert any(line.startswith("  contact failsafe round0: ") for line in lines)
 
 
 def test_plain_step_compiles_none_of_it():

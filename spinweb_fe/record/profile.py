@@ -74,3 +74,32 @@ class Profile:
             group.attrs[key] = v
         group.attrs["units"] = ("*_s: s (cycle-counter ticks at ticks_per_s [1/s]); the rest "
                                 "counts over the run (fe.contact.clock, record.profile)")
+
+
+#: (feature, pass, the count shown beside it) of :func:`report`'s lines
+LINES = (("audit", "motion", "steps"), ("audit", "certificates", "pairs_read"),
+         ("audit", "exact", "pairs_exact_branch"), ("audit", "wide", "wide_pairs"),
+         ("contact", "near_selection", "near_pairs"),
+         ("contact", "closest_points", "near_pairs"), ("contact", "push", "pairs_in_contact"),
+         ("contact", "motion", "steps"), ("contact", "friction", "pairs_in_contact"),
+         ("contact", "failsafe_round0", "round0_pairs_tested"),
+         ("contact", "failsafe_rounds", "later_round_pairs_tested"),
+         ("contact", "impact_zones", "impact_zone_calls"),
+         ("contact", "reaction", "reactions"),
+         ("contact", "after_reactions", "calls_after_reactions"))
+
+
+def report(attrs) -> list:
+    """One line per pass that took time (``spinweb info``): its seconds, per step, and the
+    count beside it, from the attributes :meth:`Profile.write` wrote."""
+    steps = {w: int(attrs.get(f"{w}_steps", 0)) for w in ("audit", "contact")}
+    lines = []
+    for which, name, count in LINES:
+        sec = float(attrs.get(f"{which}_{name}_s", 0.0))
+        if sec <= 0.0 or not steps[which]:
+            continue
+        lines.append(f"  {which} {name.replace('_', ' ')}: {sec:.4g} s "
+                     f"({1e6 * sec / steps[which]:.4g} us/step; "
+                     f"{count.replace('_', ' ')} {int(attrs[f'{which}_{count}'])})")
+    return (["profile of the passes (cycle counter, over the loop's steps):"] + lines
+            if lines else [])
