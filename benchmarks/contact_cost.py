@@ -20,9 +20,14 @@ times, fastest kept) after one short run of each that compiles or loads its loop
 is the step loop's (``RunResult.loop_s``: the compiled loop and the list rebuilds between
 its calls, not the compile). Beside it: the seconds in the list's rebuilds (the broad phase,
 timed around ``CrossingAudit.build``), the list's length at the end, the rebuild count, the
-skin, the crossings counted and the fail-safe's impulses, so that the per-pair cost of the
-remaining step can be worked out (docs/performance.md). Writes
-benchmarks/results/contact_cost.json and .png, with the machine (CPU model, ISA, load).
+skin, the crossings counted and the fail-safe's impulses, and the profile of the passes
+(fe.contact.clock, record.profile: the cycle counter's ticks per pass in the compiled loop,
+in seconds, and the pairs each pass read, looked at, tested): :func:`breakdown` turns it into
+ns per step and per listed pair-step of each pass, the counts per step, and what the profile
+does not cover (the loop less the plain step, the rebuilds and the passes: copies of x_n,
+the penalty's addition, the hub's placing after a reaction, the physics' own change).
+Writes benchmarks/results/contact_cost.json and .png (the time per step of each variant
+stacked by pass), with the machine (CPU model, ISA, load).
 """
 
 from __future__ import annotations
@@ -100,11 +105,85 @@ def run(case_name: str, keys: list, end: float, variant: str) -> dict:
     if "crossings" in named:
         au = named["crossings"]
         out.update(skin=au.skin, base_skin=au.base_skin, crossings=au.count,
-                   rebuilds=au.rebuilds, pairs_last=int(len(au.pairs)))
+                   rebuilds=au.rebuilds, pairs_last=int(len(au.pairs)),
+                   audit_profile=au.profile.seconds())
     if "contact" in named:
         co = named["contact"]
-        out.update(impulses=co.impulses, impulses_after_reactions=co.impulses_after_reactions)
+        out.update(impulses=co.impulses, impulses_after_reactions=co.impulses_after_reactions,
+                   contact_profile=co.profile.seconds())
     return out
+
+
+#: (label, profile, seconds key or a function of the profile) of each pass, in plot order
+PASSES = (
+    ("audit: motion", "audit", "motion_s"),
+    ("audit: certificate read", "audit", lambda a: a["certificates_s"] - _looked(a)
+     - a["exact_s"]),
+    ("audit: looked at (sampled)", "audit", lambda a: _looked(a)),
+    ("audit: exact branch", "audit", "exact_s"),
+    ("audit: wide steps", "audit", "wide_s"),
+    ("contact: near selection", "contact", "near_selection_s"),
+    ("contact: closest points", "contact", "closest_points_s"),
+    ("contact: push", "contact", "push_s"),
+    ("contact: fail-safe motion", "contact", "motion_s"),
+    ("contact: fail-safe round 0", "contact", "failsafe_round0_s"),
+    ("contact: later rounds", "contact", "failsafe_rounds_s"),
+    ("contact: impact zones", "contact", "impact_zones_s"),
+    ("contact: friction", "contact", "friction_s"),
+    ("contact: reaction", "contact", "reaction_s"),
+    ("contact: fail-safe rest", "contact", lambda c: c["failsafe_first_call_s"] - sum(
+        c[k] for k in ("motion_s", "failsafe_round0_s", "failsafe_rounds_s",
+                       "impact_zones_s", "friction_s", "reaction_s"))),
+    ("contact: after reactions", "contact", "after_reactions_s"),
+)
+#: counts per step worth quoting: (label, profile, key)
+COUNTS = (("audit pairs read", "audit", "pairs_read"),
+          ("audit pairs looked at", "audit", "pairs_looked_at"),
+          ("audit exact branch", "audit", "pairs_exact_branch"),
+          ("audit pairs tested (apart)", "audit", "pairs_apart_tested"),
+          ("audit pairs tested (crossing)", "audit", "pairs_crossing_tested"),
+          ("audit wide steps", "audit", "wide_steps"),
+          ("contact near pairs", "contact", "near_pairs"),
+          ("contact pairs in contact", "contact", "pairs_in_contact"),
+          ("fail-safe round 0 read", "contact", "round0_pairs_read"),
+          ("fail-safe round 0 looked at", "contact", "round0_pairs_looked_at"),
+          ("fail-safe round 0 tested", "contact", "round0_pairs_tested"),
+          ("fail-safe later rounds", "contact", "later_rounds"),
+          ("fail-safe later-round pairs", "contact", "later_round_pairs_tested"),
+          ("calls after reactions", "contact", "calls_after_reactions"),
+          ("impulses", "contact", "impulses"),
+          ("impulses after reactions", "contact", "impulses_after_reactions"))
+
+
+def _looked(a: dict) -> float:
+    """The looked-at pairs' seconds, scaled up from the timed sample [s]."""
+    n = a["pairs_looked_at_sampled"]
+    return a["looked_at_sample_s"] * a["pairs_looked_at"] / n if n else 0.0
+
+
+def breakdown(r: dict, per_plain: float) -> dict:
+    """Each pass's ns per step and per listed pair-step, the counts per step, and the
+    loop's overhead over the plain step that the passes do not cover (``other``)."""
+    steps, pair_steps = r["steps"], r.get("pair_steps") or 0.0
+    rows, covered = {}, 0.0
+    for label, which, key in PASSES:
+        prof = r.get(f"{which}_profile")
+        if prof is None:
+            continue
+        sec = key(prof) if callable(key) else prof[key]
+        covered += sec
+        rows[label] = {"s": sec, "ns_per_step": 1e9 * sec / steps,
+                       "ns_per_pair_step": 1e9 * sec / pair_steps if pair_steps else None}
+    overhead = r["loop_s"] - r["build_s"] - per_plain * steps
+    other = overhead - covered
+    rows["other (not profiled)"] = {"s": other, "ns_per_step": 1e9 * other / steps,
+                                    "ns_per_pair_step":
+                                        1e9 * other / pair_steps if pair_steps else None}
+    counts = {label: r[f"{which}_profile"][key] / steps for label, which, key in COUNTS
+              if f"{which}_profile" in r}
+    return {"passes": rows, "counts_per_step": counts, "overhead_s": overhead,
+            "profiled_s": covered,
+            "profiled_share": covered / overhead if overhead > 0 else None}
 
 
 def main(argv=None):
@@ -137,12 +216,18 @@ def main(argv=None):
                 rest = r["loop_s"] - r["build_s"] - per_plain * r["steps"]
                 r["ns_per_pair_step"] = 1e9 * rest / r["pair_steps"]
                 r["pairs_mean"] = r["pair_steps"] / r["steps"]
+            if v != "plain":
+                r["profile"] = breakdown(r, per_plain)
             results.append(r)
             print(f"{name:14s} {v:8s} {r['us_per_step']:9.1f} us/step  x{r['ratio']:7.1f}  "
                   f"rebuilds {r.get('rebuilds', '-')} ({r['build_s']:.1f} s)  "
                   f"pairs {r.get('pairs_mean', 0):.0f} mean  {r.get('ns_per_pair_step', 0):.1f} ns/pair  "
                   f"crossings {r.get('crossings', '-')}",
                   flush=True)
+            for label, row in r.get("profile", {}).get("passes", {}).items():
+                if abs(row["ns_per_step"]) >= 1000.0:
+                    print(f"    {label:30s} {row['ns_per_step'] / 1e3:9.1f} us/step  "
+                          f"{row['ns_per_pair_step'] or 0:6.2f} ns/pair", flush=True)
     info.update(machine_end=machine(), results=results)
     path = Path(args.out)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -151,27 +236,41 @@ def main(argv=None):
 
 
 def plot(results, path):
+    """Per scene, each variant's time per step [us] stacked: the plain step, the rebuilds,
+    each pass of the profile, and what the profile does not cover."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     scenes = list(dict.fromkeys(r["scene"] for r in results))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(4 * len(scenes), 3.6), squeeze=False)
+    labels = ["plain step", "list rebuilds", *(p[0] for p in PASSES), "other (not profiled)"]
+    cmap = plt.get_cmap("tab20")
+    colours = {lab: cmap(i % 20) for i, lab in enumerate(labels)}
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 4.6), squeeze=False)
     for ax, scene in zip(axes[0], scenes):
         rows = [r for r in results if r["scene"] == scene]
-        ax.bar(range(len(rows)), [r["ratio"] for r in rows], color="tab:blue")
-        ax.bar(range(len(rows)), [r["build_s"] / r["steps"] * 1e6 / (r["us_per_step"] / r["ratio"])
-                                  for r in rows], color="tab:orange", label="list rebuilds")
+        plain = next(r for r in rows if r["variant"] == "plain")
+        per_plain = 1e6 * plain["loop_s"] / plain["steps"]
+        for i, r in enumerate(rows):
+            parts = {"plain step": per_plain,
+                     "list rebuilds": 1e6 * r["build_s"] / r["steps"]}
+            for lab, row in r.get("profile", {}).get("passes", {}).items():
+                parts[lab] = row["ns_per_step"] / 1e3
+            bottom = 0.0
+            for lab in labels:
+                h = max(parts.get(lab, 0.0), 0.0)
+                if h > 0.0:
+                    ax.bar(i, h, bottom=bottom, color=colours[lab], width=0.6)
+                    bottom += h
+            ax.annotate(f"x{r['ratio']:.1f}", (i, bottom), ha="center", va="bottom",
+                        fontsize=8)
         ax.set_xticks(range(len(rows)), [r["variant"] for r in rows])
-        ax.set_yscale("log")
-        ax.set_ylabel("time per step / plain step")
+        ax.set_ylabel("time per step [us]")
         ax.set_title(f"{scene}: {rows[0]['elements']} elements, {rows[0]['steps']} steps",
                      fontsize=9)
-        for i, r in enumerate(rows):
-            ax.annotate(f"x{r['ratio']:.1f}", (i, r["ratio"]), ha="center", va="bottom",
-                        fontsize=8)
-    axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
+    handles = [plt.Rectangle((0, 0), 1, 1, color=colours[lab]) for lab in labels]
+    fig.legend(handles, labels, fontsize=6, loc="lower center", ncol=5)
+    fig.tight_layout(rect=(0, 0.2, 1, 1))
     fig.savefig(path, dpi=110)
 
 

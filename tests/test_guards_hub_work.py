@@ -7,7 +7,7 @@ through its Python function (contact_resolve has no Python entry)."""
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.contact.bounds import Certified, no_motion
+from spinweb_fe.fe.contact.bounds import Certified, contact_profile, no_motion
 from spinweb_fe.fe.contact.impulses import hub_start
 from spinweb_fe.fe.contact.failsafe import contact_resolve
 from spinweb_fe.fe.contact.penalty import (IMPULSES, MARGIN, ROUNDS, TAKEN, ContactKernel)
@@ -41,7 +41,8 @@ def test_the_fixed_hubs_reaction_work_is_paired_with_its_half_step_rates():
     h0 = hub_start()
     h0.rate[0] = w_minus
     motion = no_motion(4, 2)
-    cert = Certified(np.full(1, -1.0), motion, no_adjacency(4, 1), np.ones(2, np.int8))
+    cert = Certified(np.full(1, -1.0), motion, no_adjacency(4, 1), np.ones(2, np.int8),
+                     *contact_profile())
     n = 4
     ck = ContactKernel(elems, pairs, np.zeros(1), np.zeros((1, 3)), v.copy(), np.zeros((n, 3)),
                        np.zeros((n, 3)), h0, np.zeros((n, 3)), np.zeros(n, np.int64),

@@ -84,6 +84,9 @@ def audit_lines(h5) -> list:
                          f"{int(g.attrs['contact_impulses'])} fail-safe impulses "
                          f"({int(g.attrs['impulses_after_reactions'])} after the hub's "
                          "reactions)")
+        if "profile" in g:
+            from spinweb_fe.record.profile import report
+            lines += report(g["profile"].attrs)
     if "linking" in h5:
         g = h5["linking"]
         t, changed = g["time"][()], int(g.attrs["changed_total"])

@@ -13,11 +13,13 @@ import numpy as np
 
 from spinweb_fe.fe.contact.penalty import (AGAIN, DEEPEST_RUN, ENERGY, FRICTION, IMPULSES, KAPPA,
                                          LEFT, MARGIN, ROUNDS, TAKEN, ContactKernel)
-from spinweb_fe.fe.contact.bounds import Certified
+from spinweb_fe.fe.contact.bounds import Certified, contact_profile
+from spinweb_fe.fe.contact.clock import CONTACT_CLOCK, CONTACT_TALLY
 from spinweb_fe.fe.contact.impulses import hub_start
 from spinweb_fe.fe.contact.zones import no_adjacency
 from spinweb_fe.fe.layout import CONTACT, named
 from spinweb_fe.record.feature import Feature, copied
+from spinweb_fe.record.profile import Profile
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +72,8 @@ class CableContact(Feature):
         self.codes, self.reach = np.zeros(0, np.int64), np.zeros(0)
         self._pairs = self._kernel = None
         self._rows = 1
+        #: what the contact's passes cost (record.profile; not checkpointed)
+        self.profile = Profile(CONTACT_CLOCK, CONTACT_TALLY)
 
     def sync(self, codes, dist):
         """A new candidate list (its pairs' sorted ``codes`` and distances at the build
@@ -94,7 +98,8 @@ class CableContact(Feature):
                 self.sync(codes, dist)
             self._pairs = audit.pairs
             cert = Certified(audit.level, audit.motion,
-                             no_adjacency(len(self.force), len(audit.pairs)), audit.active)
+                             no_adjacency(len(self.force), len(audit.pairs)), audit.active,
+                             self.profile.clock, self.profile.tally)
             self._kernel = ContactKernel(self.elem_nodes, audit.pairs, self.reach,
                                          np.zeros((len(audit.pairs), 3)), self.vel0,
                                          self.vel1, self.vel2, hub_start(), self.force,
@@ -108,6 +113,7 @@ class CableContact(Feature):
 
     def prepare(self, state, rows: int) -> None:
         self._rows = rows
+        self.profile.start()
 
     def kernel(self, hooks: dict):
         """On the list of the crossing audit (:attr:`audit`, the feature before it, whose
@@ -120,7 +126,7 @@ class CableContact(Feature):
         return copied(kernel)._replace(pos0=au.pos0, active=au.active,
                                        cert=Certified(au.level, au.motion,
                                                       copied(kernel.cert.adj),
-                                                      au.active))
+                                                      au.active, *contact_profile()))
 
     def columns(self, kernel, rec, nrec: int) -> dict:
         return named(kernel.rows[:nrec], CONTACT)
@@ -144,6 +150,7 @@ class CableContact(Feature):
         g.attrs["deepest_penetration"] = self.deepest_run
         g.attrs["contact_impulses"] = self.impulses
         g.attrs["impulses_after_reactions"] = self.impulses_after_reactions
+        self.profile.write(g.require_group("profile"), "contact")
 
     @property
     def energy(self) -> float:

@@ -39,7 +39,9 @@ from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in
 from spinweb_fe.fe.contact.distance import pair_distances
 from spinweb_fe.fe.layout import AUDIT, named
 from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
+from spinweb_fe.fe.contact.clock import AUDIT_CLOCK, AUDIT_TALLY
 from spinweb_fe.record.feature import Feature, copied
+from spinweb_fe.record.profile import Profile
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +126,8 @@ class CrossingAudit(Feature):
         self._restored = None
         self.frame_angle = np.zeros(1)  # the angle of the frame that follows the web [rad]
         self.kernel_data = None
+        #: what the audit's passes cost (record.profile; over the rebuilds, not checkpointed)
+        self.profile = Profile(AUDIT_CLOCK, AUDIT_TALLY)
 
     def _code(self, pairs):
         return pairs[:, 0] * np.int64(len(self.elem_nodes)) + pairs[:, 1]
@@ -176,13 +180,14 @@ class CrossingAudit(Feature):
             self.skin, np.array([self.count], np.int64), np.zeros(LOG_ROOM),
             np.zeros(LOG_ROOM, np.int64), np.zeros(LOG_ROOM, np.int64),
             np.zeros(LOG_ROOM, np.int64), np.zeros(1, np.int64), np.zeros(self._rows),
-            np.zeros(1))
+            np.zeros(1), self.profile.clock, self.profile.tally)
 
     # -- the feature's hooks (record.feature) --
 
     def prepare(self, state, rows: int) -> None:
         """The list at the run's first state, or the one a checkpoint's memory held."""
         self._rows = rows
+        self.profile.start()
         k = self.kernel_data
         if self._restored is not None:
             self._make(*self._restored)
@@ -236,6 +241,7 @@ class CrossingAudit(Feature):
 
     def write(self, h5) -> None:
         write_table(h5, self)
+        self.profile.write(h5.require_group("crossings").require_group("profile"), "audit")
         log.info("crossings: %d (broad phase built %d times)", self.count, self.rebuilds)
 
     def step(self, pos0, state, t0: float, dt: float):

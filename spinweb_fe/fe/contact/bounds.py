@@ -74,12 +74,22 @@ class Certified(NamedTuple):
     [m], each pair's certificate level (its bound at the step's start is level - cum0_e -
     cum0_f); the step's ``motion``;
     ``adj``, the pairs of each node (fe.contact.zones.Adjacency, filled when first needed);
-    ``active`` (m,) int8, the elements the list takes (fe.contact.broad)."""
+    ``active`` (m,) int8, the elements the list takes (fe.contact.broad); ``clock`` (11,)
+    int64 [cycle-counter ticks] and ``tally`` (14,) int64: the profile of the contact's
+    passes (fe.contact.clock's C_ and N_ slots; added to only, no part of a checkpoint:
+    :func:`contact_profile` makes them)."""
 
     level: np.ndarray
     motion: StepMotion
     adj: tuple
     active: np.ndarray
+    clock: np.ndarray
+    tally: np.ndarray
+
+
+def contact_profile() -> tuple:
+    """A zeroed ``(clock, tally)`` pair for :class:`Certified`."""
+    return np.zeros(11, np.int64), np.zeros(14, np.int64)
 
 
 def no_motion(n_nodes: int, n_elems: int) -> StepMotion:

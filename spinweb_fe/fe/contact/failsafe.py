@@ -13,6 +13,11 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.contact.bounds import bound_after, bound_now, pair_motion, step_motion
+from spinweb_fe.fe.contact.clock import (C_AGAIN, C_FRICTION, C_MOTION, C_REACTION, C_RESOLVE,
+                                         C_ROUND0, C_ROUNDS, C_ZONES, N_AGAIN, N_EXACT0,
+                                         N_IMPULSES, N_IMPULSES_AGAIN, N_LOOK0, N_REACTIONS,
+                                         N_READ0, N_RESOLVE, N_ROUND_PAIRS, N_ROUNDS, N_ZONES,
+                                         cycles, lap)
 from spinweb_fe.fe.contact.crossing import SEP, apart, pair_crossings
 from spinweb_fe.fe.contact.distance import closest_points
 from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
@@ -41,16 +46,21 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     of the nodes it placed (inv_mass 0) and of the free nodes stuck to it this step (the
     zones', ``ck.follow``, which take the reaction with it) are tested, without the
     friction. ``place`` False: the hub's reaction changes its velocities only, not its
-    pose (fe.step.settle's last pass; fe.contact.impulses)."""
+    pose (fe.step.settle's last pass; fe.contact.impulses). Timed into the profile (``ck.cert.clock``, ``tally``:
+    fe.contact.clock)."""
+    clock, tally = ck.cert.clock, ck.cert.tally
+    start = cycles()
     ck.vel1[:] = vel
     h0 = ck.hub0
     h0.dw[0] = 0.0
     h0.took[0] = False
     rubbed = ck.mu > 0.0 and ck.stats[IN_CONTACT] > 0 and not again
     if rubbed:
+        t0 = cycles()
         friction_impulses(ck.pairs, ck.elem_nodes, ck.hold, ck.pos0, pos, vel, inv_mass, dt,
                           ck.mu)
         ck.vel2[:] = vel
+        lap(clock, C_FRICTION, t0)
     if body is not None:  # (this way round: numba prunes the body's branch on an axis)
         hub = body_map(body, h0.centre, h0.quaternion)
     else:
@@ -61,10 +71,13 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
                                        (inv_mass == 0.0) | ck.follow, ck.follow)
     else:
         ck.follow[:] = False
+        t0 = cycles()
         step_motion(ck.cert.motion, ck.elem_nodes, ck.active, ck.pos0, pos)
+        lap(clock, C_MOTION, t0)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
                                        None, ck.follow)
+    t0 = cycles()
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
         # + v_{n+1/2}) / 2 per node (the impulses change v_{n+1/2} and x_{n+1} as a force
@@ -87,10 +100,20 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         rub = -impulse_work(ck.vel1, ck.vel2, ck.vel0, inv_mass) if rubbed else 0.0
         ck.stats[FRICTION] += rub
         ck.stats[TAKEN] += total - rub
+        if not again:
+            lap(clock, C_REACTION, t0)
+        tally[N_REACTIONS] += h0.took[0]
     ck.stats[IMPULSES] += n
     ck.stats[LEFT] += left
     if again:
         ck.stats[AGAIN] += n
+        lap(clock, C_AGAIN, start)
+        tally[N_AGAIN] += 1
+        tally[N_IMPULSES_AGAIN] += n
+    else:
+        lap(clock, C_RESOLVE, start)
+        tally[N_RESOLVE] += 1
+        tally[N_IMPULSES] += n
     return n, left
 
 
@@ -129,7 +152,10 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     todo = np.arange(pairs.shape[0])
     adj = no_adjacency(n_nodes, pairs.shape[0]) if cert is None else cert.adj
     sep = 0.0 if cert is None else SEP * cert.motion.scale[0]
+    t0 = 0
     for rnd in range(first, rounds):
+        if cert is not None:
+            t0 = cycles()
         now = np.zeros(n_nodes, np.bool_)
         left = 0
         certified = cert is not None and rnd == 0
@@ -142,7 +168,9 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                 if cert is not None:  # (the certificates of the motion as it now stands)
                     step_motion(cert.motion, elem_nodes, cert.active, pos0, pos1)
                     certified = True
+        read, looked, tested = 0, 0, 0
         for p in todo:
+            read += 1
             e, g = pairs[p, 0], pairs[p, 1]
             a, b = elem_nodes[e, 0], elem_nodes[e, 1]
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
@@ -150,10 +178,12 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                 continue
             if certified:
                 mo = cert.motion
-                if (bound_after(cert.level, mo, p, e, g) > sep
-                        or bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d)
-                        > sep):
+                if bound_after(cert.level, mo, p, e, g) > sep:
                     continue
+                looked += 1
+                if bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d) > sep:
+                    continue
+            tested += 1
             if apart(pos0, pos1, a, b, c, d, sep) or pair_crossings(
                     pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d], pos1[d],
                     times, signs, scratch, cuts, sep) == 0:
@@ -202,9 +232,24 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             taken += ke0 - ke1
             impulses += 1
         moved = now
+        if cert is not None:
+            if rnd == 0:
+                lap(cert.clock, C_ROUND0, t0)
+                cert.tally[N_READ0] += read
+                cert.tally[N_LOOK0] += looked
+                cert.tally[N_EXACT0] += tested
+            else:
+                lap(cert.clock, C_ROUNDS, t0)
+                cert.tally[N_ROUNDS] += 1
+                cert.tally[N_ROUND_PAIRS] += tested
         if left == 0:
             break
     if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
+        if cert is not None:
+            t0 = cycles()
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
                                zone_rounds, hub, moved, adj, follow)
+        if cert is not None:
+            lap(cert.clock, C_ZONES, t0)
+            cert.tally[N_ZONES] += 1
     return taken, impulses, left

@@ -47,6 +47,8 @@ import numpy as np
 from numba import njit
 
 from spinweb_fe.fe.contact.bounds import ROUND, Certified, bound_now
+from spinweb_fe.fe.contact.clock import (C_CLOSEST, C_PUSH, C_SELECT, N_NEAR, N_PUSH, N_TOUCH,
+                                         cycles, lap)
 from spinweb_fe.fe.contact.distance import closest_nodes
 from spinweb_fe.fe.contact.impulses import HubStart
 
@@ -86,7 +88,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     step. ``cert`` (fe.contact.bounds.Certified), if given: the pairs' certificates, whose
     bound at ``pos`` (the step's start) rules out the pairs farther apart than twice the
     radius (else the pairs' own boxes at ``pos``); a pair it does not rule out gets its
-    exact distance less ``slack`` [m] (round-off) as its new bound. ``hold``
+    exact distance less ``slack`` [m] (round-off) as its new bound, and the three loops
+    are timed into its profile (fe.contact.clock: C_SELECT, C_CLOSEST, C_PUSH). ``hold``
     (P, 3), if given: each pair's normal force [N] (0: not in contact) and its closest
     points' s and t, for the friction. Returns (stored energy [J], pairs in contact,
     deepest penetration [m])."""
@@ -102,6 +105,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
     n_pairs = pairs.shape[0]
     near = np.empty(n_pairs, np.int64)
     n_near = 0
+    if cert is not None:
+        start = cycles()
     for p in range(n_pairs):
         e, g = pairs[p, 0], pairs[p, 1]
         if cert is None:
@@ -115,6 +120,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
             continue
         near[n_near] = p
         n_near += 1
+    if cert is not None:
+        start = lap(cert.clock, C_SELECT, start)
     ps, pt, pd = np.empty(n_near), np.empty(n_near), np.empty(n_near)
     for q in range(n_near):
         p = near[q]
@@ -133,6 +140,8 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
             share[b] += 1
             share[c] += 1
             share[d] += 1
+    if cert is not None:
+        start = lap(cert.clock, C_CLOSEST, start)
     for q in range(n_near):
         p = near[q]
         dist = pd[q]
@@ -166,6 +175,11 @@ def contact_forces(pairs, elem_nodes, pos, inv_mass, reach, radius, kappa, dt, f
         energy += 0.5 * k * delta * delta
         count += 1
         deepest = max(deepest, delta)
+    if cert is not None:
+        lap(cert.clock, C_PUSH, start)
+        cert.tally[N_PUSH] += 1
+        cert.tally[N_NEAR] += n_near
+        cert.tally[N_TOUCH] += count
     return energy, count, deepest
 
 
@@ -233,8 +247,10 @@ ENERGY, IN_CONTACT, DEEPEST, DEEPEST_RUN, TAKEN, IMPULSES, LEFT, FRICTION, AGAIN
 def contact_push(ck, pos, vel, inv_mass, dt):
     """The penalty forces at x_n into ``ck.force`` (the step adds them to f_n:
     :func:`add_penalty`), and v_{n-1/2} kept (the impulses' work at the step's end is
-    paired with it)."""
+    paired with it; its copy is timed with the near selection)."""
+    start = cycles()
     ck.vel0[:] = vel
+    lap(ck.cert.clock, C_SELECT, start)
     st = ck.stats
     st[ENERGY], count, st[DEEPEST] = contact_forces(ck.pairs, ck.elem_nodes, pos, inv_mass,
                                                     ck.reach, ck.radius, ck.kappa, dt,

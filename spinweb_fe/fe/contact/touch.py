@@ -36,6 +36,10 @@ from numba import njit
 
 from spinweb_fe.fe.contact.bounds import (ROUND, StepMotion, bound_now, pair_motion, set_level,
                                           step_motion)
+from spinweb_fe.fe.contact.clock import (A_CERT, A_EXACT, A_LOOK, A_MOTION, A_WIDE, SAMPLE,
+                                         T_CLOSE, T_EXACT, T_LOOK_SAMPLED, T_LOOKED,
+                                         T_PAIR_TEST, T_READ, T_STEPS, T_WIDE, T_WIDE_PAIRS,
+                                         cycles, lap)
 from spinweb_fe.fe.contact.broad import candidate_pairs, moved_since, swept_boxes
 from spinweb_fe.fe.contact.crossing import (SEP, apart, boxed_crossings, log_crossings,
                                             pair_crossings)
@@ -96,6 +100,8 @@ class AuditKernel(NamedTuple):
     n_log: np.ndarray
     row_count: np.ndarray
     moved: np.ndarray
+    clock: np.ndarray
+    tally: np.ndarray
 
 
 @njit(cache=True)
@@ -114,7 +120,7 @@ def wide_pairs(au, pos0, reach):
 
 @njit(cache=True)
 def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, out_e, out_f,
-                        out_s):
+                        out_s, clock, tally):
     """The crossings of the listed ``pairs`` over the step from ``pos0`` to ``pos1`` (counted,
     the first written to the ``out_*`` arrays), tested exactly only where the pair's
     certificate cannot rule them out (fe.contact.bounds: its ``level`` less its elements'
@@ -122,6 +128,7 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
     the step's motion); a pair looked at gets a new level (its distance at the step's end
     for one tested). ``test``
     False: the certificates only (the contact's fail-safe tested this step already).
+    ``clock``, ``tally``: the profile (fe.contact.clock's A_ and T_ slots), added to only.
     Returns the count."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
@@ -130,21 +137,43 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
     slack = ROUND * mo.scale[0]
     cum = mo.cum
     n = 0
+    start = t0 = cycles()
+    looked, sampled, close, tested, crossed = 0, 0, 0, 0, 0
     for p in range(pairs.shape[0]):
         e, f = pairs[p, 0], pairs[p, 1]
         if level[p] - cum[e] - cum[f] > sep:  # (bound_after, read only)
             continue
+        timed = looked % SAMPLE == 0
+        looked += 1
+        if timed:
+            t0 = cycles()
         a, b = elem_nodes[e, 0], elem_nodes[e, 1]
         c, d = elem_nodes[f, 0], elem_nodes[f, 1]
         bound = bound_now(level, mo, p, e, f) - pair_motion(mo, a, b, c, d)
+        if timed:
+            t0 = lap(clock, A_LOOK, t0)
+            sampled += 1
         if bound > sep:
             set_level(level, mo, p, e, f, bound)
             continue
-        if test and not apart(pos0, pos1, a, b, c, d, sep):
-            k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
-                               pos0[d], pos1[d], times, signs, w, cuts, sep)
-            n = log_crossings(out_t, out_e, out_f, out_s, n, times, signs, k, e, f)
+        t1 = cycles()
+        close += 1
+        if test:
+            tested += 1
+            if not apart(pos0, pos1, a, b, c, d, sep):
+                crossed += 1
+                k = pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c],
+                                   pos0[d], pos1[d], times, signs, w, cuts, sep)
+                n = log_crossings(out_t, out_e, out_f, out_s, n, times, signs, k, e, f)
         set_level(level, mo, p, e, f, closest_nodes(pos1, a, b, c, d)[2] - slack)
+        lap(clock, A_EXACT, t1)
+    lap(clock, A_CERT, start)
+    tally[T_READ] += pairs.shape[0]
+    tally[T_LOOKED] += looked
+    tally[T_LOOK_SAMPLED] += sampled
+    tally[T_CLOSE] += close
+    tally[T_EXACT] += tested
+    tally[T_PAIR_TEST] += crossed
     return n
 
 
@@ -156,11 +185,14 @@ def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
     motion and found no crossing, so only the certificates are kept up). Returns True if
     the list needs a rebuild (or the log a flush) before the next step."""
     mo = au.motion
+    start = cycles()
     if not fresh:
         step_motion(mo, au.elem_nodes, au.active, au.pos0, pos)
     theta = au.frame[0] = mo.theta[1]  # the frame that follows the web, now
     moved = moved_since(au.ref, pos, math.cos(theta), math.sin(theta))
     au.moved[0] = moved
+    start = lap(au.clock, A_MOTION, start)
+    au.tally[T_STEPS] += 1
     k = au.n_log[0]
     end = k + LOG_PER_STEP
     if moved > WIDE * au.skin:  # a step beyond the list's reach: a list as wide as it
@@ -170,10 +202,13 @@ def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
         n = boxed_crossings(pairs, au.elem_nodes, au.pos0, pos, box, au.log_time[k:end],
                             au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end],
                             SEP * mo.scale[0])
+        lap(au.clock, A_WIDE, start)
+        au.tally[T_WIDE] += 1
+        au.tally[T_WIDE_PAIRS] += pairs.shape[0]
     else:
         n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo, not clean,
                                 au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
-                                au.log_sign[k:end])
+                                au.log_sign[k:end], au.clock, au.tally)
     mo.cum0[:] = mo.cum  # the sums to the next step's start
     logged = min(n, LOG_PER_STEP)
     for i in range(k, k + logged):
