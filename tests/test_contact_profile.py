@@ -90,6 +90,9 @@ def test_counts_agree_with_the_list(contact_run):
     assert co["impulses_after_reactions"] == features["contact"].impulses_after_reactions
 
 
+# (a timing of the loop against the profile's seconds: make validate, not make test, whose
+# workers share a loaded machine)
+@pytest.mark.slow
 def test_seconds_account_for_the_overhead(contact_run):  # (after the fixture's compile)
     """The passes' seconds sum to 85-102 % of the contact's overhead (the loop's seconds
     less the rebuilds' and the plain step's, from a plain run): the intervals are disjoint
@@ -145,6 +148,9 @@ def test_written_to_results(tmp_path):
     assert any(line.startswith("  contact failsafe round0: ") for line in lines)
 
 
+# (two fresh compiles of the whole loop, 15 s: make validate; tests/test_architecture.py's
+# rule on else branches guards the pruning in make test)
+@pytest.mark.slow
 def test_plain_step_compiles_none_of_it():
     """The plain step's compiled code (fe.step.advance compiled afresh for a plain run's
     arguments, the callees' code linked in) reads no cycle counter; the same step with the
