@@ -1,11 +1,22 @@
 """Every test starts with Python's own signal handlers (SIGINT raising KeyboardInterrupt,
 SIGTERM the default) and gets back whatever it found afterwards: the signal tests and the
 child processes they start (which inherit an ignored signal) must not depend on what an
-earlier test in the same process, or a pytest-xdist worker's set-up, left installed."""
+earlier test in the same process, or a pytest-xdist worker's set-up, left installed.
 
+Under pytest-xdist (``make test``: two workers on two cores) the cold start's compile helper
+(spinweb_fe.run.warmup) is off, as in a sweep's workers (spinweb_fe.sweep.run): both cores
+are busy already, and a helper forked beside a worker's loop compile competes with the
+other worker for a core and compiles the phases the loop compiles at the same moment (a
+cold suite logged 55 s of such compiles). tests/test_warmup.py and
+tests/test_guards_start.py switch it on where they test it."""
+
+import os
 import signal
 
 import pytest
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("SPINWEB_COMPILE_HELPER", "0")
 
 
 @pytest.fixture(autouse=True)

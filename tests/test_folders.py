@@ -159,35 +159,6 @@ def test_the_folder_is_claimed_before_the_set_up(tmp_path, good_run, monkeypatch
     assert not (out / LOCK_NAME).exists()
 
 
-def test_a_compiling_run_holds_its_folder(tmp_path):
-    """The same with a cold numba cache, two processes: while the first compiles (the lock
-    is there, no result yet), the second exits 1 at once; the first then completes."""
-    out = tmp_path / "cold"
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    cmd = [sys.executable, "-m", "spinweb_fe", "run", *FAST, "-o", str(out)]
-    first = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not (out / LOCK_NAME).exists():
-            assert first.poll() is None and time.monotonic() < deadline, first.communicate()
-            time.sleep(0.02)
-        assert not (out / "results.h5").exists()  # still in its set-up
-        t0 = time.monotonic()
-        second = subprocess.run([sys.executable, "-m", "spinweb_fe", "run", *FAST, "-o",
-                                 str(out)], capture_output=True, text=True, timeout=120)
-        assert second.returncode == 1 and "is in use by another run" in second.stderr
-        assert not (out / "results.h5").exists() and first.poll() is None  # still compiling
-        assert time.monotonic() - t0 < 30  # at once: a process start, no compile
-        _, err = first.communicate(timeout=300)
-    finally:
-        if first.poll() is None:
-            first.kill()
-            first.communicate()
-    assert first.returncode == 0, err
-    assert (out / "results.h5").exists() and not (out / LOCK_NAME).exists()
-
-
 def test_an_earlier_result_is_replaced_only_after_the_first_flush(tmp_path, good_run,
                                                                    monkeypatch, capsys):
     """Item 1: the earlier result is kept aside in DIR/.previous until the new run's first

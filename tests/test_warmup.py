@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
+from spinweb_fe.io.folder import LOCK_NAME
 from spinweb_fe.run import warmup
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -77,15 +78,20 @@ def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
 def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp_path):
     """A cold `spinweb run` of the demo (0.1 s) with the helper, then the same run with it
     off (warm cache): exit 0, bit-identical histories; after the first run's exit no
-    process of its session is left (the helper stopped with the loop compiled)."""
+    process of its session is left (the helper stopped with the loop compiled). While the
+    cold run compiles (its folder's lock there, no result yet), a second run into its
+    folder exits 1 at once, without a compile, and changes nothing (issue #15: the lock is
+    taken before the compile, tests/test_folders.py for the warm cases)."""
     runs = {}
     for name, on in (("helper", "1"), ("plain", "0")):
         out = tmp_path / name
-        proc = subprocess.Popen([sys.executable, "-m", "spinweb_fe", "run", str(DEMO), "-o",
-                                 str(out), "--no-progress", "--set", "time.end=0.1"],
-                                cwd=ROOT, env=fresh_env(tmp_path, SPINWEB_COMPILE_HELPER=on),
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                start_new_session=True)
+        cmd = [sys.executable, "-m", "spinweb_fe", "run", str(DEMO), "-o", str(out),
+               "--no-progress", "--set", "time.end=0.1"]
+        env = fresh_env(tmp_path, SPINWEB_COMPILE_HELPER=on)
+        proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, start_new_session=True)
+        if name == "helper":
+            _second_run_is_refused(proc, cmd, env, out)
         _, err = proc.communicate(timeout=600)
         assert proc.returncode == 0, err.decode()[-2000:]
         for _ in range(50):  # the helper may take a moment to unwind
@@ -102,6 +108,22 @@ def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp
     assert runs["helper"].keys() == runs["plain"].keys()
     for key, value in runs["plain"].items():
         assert np.array_equal(runs["helper"][key], value, equal_nan=True), key
+
+
+def _second_run_is_refused(first, cmd, env, out):
+    """While ``first`` (a cold run into ``out``) compiles: a second run into the same
+    folder exits 1 within 30 s naming the run in use, and the first goes on."""
+    deadline = time.monotonic() + 60
+    while not (out / LOCK_NAME).exists():
+        assert first.poll() is None and time.monotonic() < deadline, first.communicate()
+        time.sleep(0.02)
+    assert not (out / "results.h5").exists()  # still in its set-up
+    t0 = time.monotonic()
+    second = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
+                            timeout=120)
+    assert second.returncode == 1 and "is in use by another run" in second.stderr
+    assert not (out / "results.h5").exists() and first.poll() is None  # still compiling
+    assert time.monotonic() - t0 < 30  # at once: a process start, no compile
 
 
 def test_the_helper_is_off_when_asked_or_when_the_loop_is_compiled(tmp_path, monkeypatch):
