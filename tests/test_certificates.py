@@ -14,7 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.contact.bounds import no_motion, pair_motion, step_motion
+from spinweb_fe.fe.contact.bounds import (frame_turn, moved_pair_motion, no_motion, pair_motion,
+                                          step_motion)
 
 
 def frame(theta, x):
@@ -65,6 +66,42 @@ def test_node_and_pair_bounds_hold_along_the_step(radius, spin):
                 p = (1 - u) * dy[ia] + u * dy[ib] - (1 - v) * dy[ic] - v * dy[id_]
                 worst_pair = max(worst_pair, (np.linalg.norm(p, axis=1) / lim).max())
     assert max(worst_node, worst_pair, worst_elem) <= 1.0, (worst_node, worst_pair, worst_elem)
+
+
+@pytest.mark.parametrize("radius", [1.0, 1e3])
+@pytest.mark.parametrize("spin", [1e-4, 0.5])
+def test_the_pair_bound_after_impulses_holds_along_the_step(radius, spin):
+    """The fail-safe's later passes (moved_pair_motion): after step_motion, impulses move a
+    third of the nodes' x_{n+1} (by up to a fifth of the radius times the turn, or 1 mm);
+    the pair bound from the positions as they then stand, in the frame step_motion fitted
+    before, holds for every sampled point pair along the new straight-line motion; with no
+    node moved it is pair_motion exactly."""
+    rng = np.random.default_rng(int(radius + spin * 1e4))
+    n = 24
+    elem = np.array([[2 * k, 2 * k + 1] for k in range(n // 2)], np.int64)
+    quads = [(*elem[e], *elem[f]) for e in range(len(elem)) for f in range(e + 1, len(elem))]
+    worst = 0.0
+    for trial in range(4):
+        pos0, pos1 = moved(rng, n, radius, spin * (1 + 0.3 * trial), 0.1 * trial)
+        mo = no_motion(n, len(elem))
+        mo.theta[0] = rng.uniform(-3, 3)
+        step_motion(mo, elem, np.ones(len(elem), np.int8), pos0, pos1)
+        turn = frame_turn(mo)
+        for q in quads[:20]:
+            assert moved_pair_motion(mo, pos0, pos1, *q, turn) == pair_motion(mo, *q)
+        kick = rng.random(n) < 1 / 3
+        pos1 = pos1.copy()
+        pos1[kick] += rng.normal(size=(kick.sum(), 3)) * max(0.2 * radius * spin, 1e-3)
+        th0, th1 = mo.theta
+        y0 = frame(th0, pos0)
+        lim = np.array([moved_pair_motion(mo, pos0, pos1, *q, turn) for q in quads])
+        ia, ib, ic, id_ = np.array(quads).T
+        for t in np.linspace(0.0, 1.0, 101):
+            dy = frame(th0 + t * (th1 - th0), pos0 + t * (pos1 - pos0)) - y0
+            for u, v in ((0.0, 0.0), (0.3, 0.8), (1.0, 0.5), (0.5, 1.0), (0.0, 1.0)):
+                p = (1 - u) * dy[ia] + u * dy[ib] - (1 - v) * dy[ic] - v * dy[id_]
+                worst = max(worst, (np.linalg.norm(p, axis=1) / lim).max())
+    assert worst <= 1.0, worst
 
 
 def test_the_fitted_frame_follows_a_rigid_spin():

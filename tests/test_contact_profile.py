@@ -84,6 +84,7 @@ def test_counts_agree_with_the_list(contact_run):
     assert looked / SAMPLE <= au["pairs_looked_at_sampled"] <= looked / SAMPLE + steps
     assert (co["round0_pairs_tested"] <= co["round0_pairs_looked_at"]
             <= co["round0_pairs_read"])
+    assert co["later_round_pairs_tested"] <= co["later_round_pairs_looked_at"]
     assert co["pairs_in_contact"] <= co["near_pairs"] <= pair_steps
     assert co["impulses"] == features["contact"].impulses - features[
         "contact"].impulses_after_reactions

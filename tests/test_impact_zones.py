@@ -312,3 +312,61 @@ def test_nodes_stuck_to_a_fixed_axis_turn_with_it_and_keep_the_axial_momentum(pl
     assert np.abs(dv[:4] - dw * np.cross([0.0, 0.0, 1.0], pos_in[:4])).max() < 1e-14
     assert np.array_equal(dv[4:], np.zeros((4, 3)))
     assert np.abs(pos - pos_in - (DT * dv if place else 0.0)).max() < 1e-15
+
+
+@pytest.mark.parametrize("scene, margin", [("column", 1e-4), ("squeeze", WIDE_MARGIN)])
+def test_the_later_passes_certificates_rule_out_only_pairs_that_cannot_meet(scene, margin):
+    """The column (or the squeeze, whose light bars rest until an impulse moves them) beside
+    fifty resting bars 5-14 m away (every pair listed; the column's ten nodes under an
+    eighth of the 110, so the passes after the first take the pairs of the nodes a pass
+    moved), with each pair's exact distance at x_n as its certificate: the later passes
+    rule out the pairs whose bound at the step's start less their four nodes' motion as the
+    impulses left it stays apart (fe.contact.bounds.moved_pair_motion), and no pair of the
+    list crosses over the step after the fail-safe (the exact test on every pair). In the
+    column the result is bit for bit the one of certificates that rule nothing out (every
+    pair tested exactly, the same least separation). (In the squeeze it is not: the first
+    pass reads its certificates against the motion at its start, and a light bar an impulse
+    moves within that pass has its pairs tested in the next pass instead, a different
+    order of the same impulses' kind; the motion as step_motion saw it before the impulses,
+    read in the later passes, would rule out the squeezed bars' pairs and leave crossings.)"""
+    from spinweb_fe.fe.contact.bounds import Certified, contact_profile, no_motion, step_motion
+    from spinweb_fe.fe.contact.clock import N_ROUND_LOOKED, N_ROUND_PAIRS, N_ROUNDS
+    from spinweb_fe.fe.contact.distance import closest_points
+    from spinweb_fe.fe.contact.zones import no_adjacency
+
+    _, elems, pos0, pos1, vel, inv_mass = column() if scene == "column" else squeeze()
+    rng = np.random.default_rng(5)
+    far = []
+    for k in range(50):  # resting bars 2 m long, 5-14 m from the column
+        centre = np.array([5.0 + 0.2 * k, rng.uniform(-3, 3), rng.uniform(-1, 1)])
+        u = rng.normal(size=3)
+        far += [centre - u / np.linalg.norm(u), centre + u / np.linalg.norm(u)]
+    far = np.array(far)
+    pos0 = np.vstack([pos0, far])
+    pos1 = np.vstack([pos1, far])
+    vel = np.vstack([vel, np.zeros_like(far)])
+    inv_mass = np.concatenate([inv_mass, np.full(len(far), 0.8)])
+    n, m = len(pos0), len(pos0) // 2
+    elems = np.arange(n, dtype=np.int64).reshape(m, 2)
+    pairs = np.array(list(itertools.combinations(range(m), 2)), np.int64)
+    exact = np.array([closest_points(pos0[a], pos0[b], pos0[c], pos0[d])[2]
+                      for (a, b), (c, d) in ((elems[e], elems[g]) for e, g in pairs)])
+    out = {}
+    for name, level in (("certified", exact * (1 - 1e-12)), ("none", np.full(len(pairs), -1.0))):
+        cert = Certified(level.copy(), no_motion(n, m), no_adjacency(n, len(pairs)),
+                         np.ones(m, np.int8), *contact_profile())
+        p1, v = pos1.copy(), vel.copy()
+        step_motion(cert.motion, elems, cert.active, pos0, p1)
+        taken, impulses, left = resolve_crossings(pairs, elems, pos0, p1, v, inv_mass, DT,
+                                                  margin, 20, cert)
+        out[name] = (taken, impulses, left, p1, v, cert.tally.copy())
+    a, b = out["certified"], out["none"]
+    for taken, impulses, left, p1, *_ in (a, b):
+        assert impulses > 0 and left == 0 and crossings(pairs, elems, pos0, p1) == 0
+    if scene == "column":
+        assert a[:3] == b[:3]
+        assert np.array_equal(a[3], b[3]) and np.array_equal(a[4], b[4])
+    tally, plain = a[5], b[5]
+    assert tally[N_ROUNDS] >= 1 and plain[N_ROUNDS] >= 1  # later passes ran
+    assert plain[N_ROUND_PAIRS] == plain[N_ROUND_LOOKED] > 0  # nothing ruled out
+    assert 0 < tally[N_ROUND_PAIRS] < 0.5 * tally[N_ROUND_LOOKED]  # the far pairs ruled out

@@ -75,7 +75,7 @@ class Certified(NamedTuple):
     cum0_f); the step's ``motion``;
     ``adj``, the pairs of each node (fe.contact.zones.Adjacency, filled when first needed);
     ``active`` (m,) int8, the elements the list takes (fe.contact.broad); ``clock`` (11,)
-    int64 [cycle-counter ticks] and ``tally`` (14,) int64: the profile of the contact's
+    int64 [cycle-counter ticks] and ``tally`` (15,) int64: the profile of the contact's
     passes (fe.contact.clock's C_ and N_ slots; added to only, no part of a checkpoint:
     :func:`contact_profile` makes them)."""
 
@@ -89,7 +89,7 @@ class Certified(NamedTuple):
 
 def contact_profile() -> tuple:
     """A zeroed ``(clock, tally)`` pair for :class:`Certified`."""
-    return np.zeros(11, np.int64), np.zeros(14, np.int64)
+    return np.zeros(11, np.int64), np.zeros(15, np.int64)
 
 
 def no_motion(n_nodes: int, n_elems: int) -> StepMotion:
@@ -108,24 +108,13 @@ def step_motion(mo, elem_nodes, active, pos0, pos1):
         x0, y0 = pos0[i, 0], pos0[i, 1]
         num += x0 * (pos1[i, 1] - y0) - y0 * (pos1[i, 0] - x0)
         den += x0 * x0 + y0 * y0
-    th0 = mo.theta[0]
-    th1 = th0 + (num / den if den > 0.0 else 0.0)
-    mo.theta[1] = th1
-    dth = th1 - th0
-    c0, s0, c1, s1 = math.cos(th0), math.sin(th0), math.cos(th1), math.sin(th1)
-    turn = dth * dth / 8.0 + abs(dth) ** 3 / 3.0
-    own = abs(dth) / 4.0
+    mo.theta[1] = mo.theta[0] + (num / den if den > 0.0 else 0.0)
+    c0, s0, c1, s1, turn, own = frame_turn(mo)
     big = 0.0
     for i in range(pos0.shape[0]):
-        x0, y0, z0 = pos0[i, 0], pos0[i, 1], pos0[i, 2]
-        x1, y1, z1 = pos1[i, 0], pos1[i, 1], pos1[i, 2]
-        mo.dy[i, 0] = (c1 * x1 + s1 * y1) - (c0 * x0 + s0 * y0)
-        mo.dy[i, 1] = (c1 * y1 - s1 * x1) - (c0 * y0 - s0 * x0)
-        mo.dy[i, 2] = z1 - z0
-        u = math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
-        mo.dev[i] = math.sqrt(x0 * x0 + y0 * y0) * turn + own * u
-        big = max(big, max(max(abs(x0), abs(y0)), max(abs(z0), abs(x1))),
-                  max(abs(y1), abs(z1)))
+        mo.dy[i, 0], mo.dy[i, 1], mo.dy[i, 2], mo.dev[i], size = node_motion(
+            pos0, pos1, i, c0, s0, c1, s1, turn, own)
+        big = max(big, size)
     mo.scale[0] = big
     slack = 4.0 * ROUND * big  # the frame's turn of coordinates of this size
     for e in range(elem_nodes.shape[0]):
@@ -136,6 +125,54 @@ def step_motion(mo, elem_nodes, active, pos0, pos1):
         mb = math.sqrt(mo.dy[b, 0] ** 2 + mo.dy[b, 1] ** 2 + mo.dy[b, 2] ** 2) + mo.dev[b]
         mo.elem[e] = max(ma, mb) + slack
         mo.cum[e] = mo.cum0[e] + mo.elem[e]
+
+
+@njit(inline="always")
+def node_motion(pos0, pos1, i, c0, s0, c1, s1, turn, own):
+    """Node i's chord in the frame (cos, sin of its angle at the step's start and end), its
+    path's departure from the chord (``turn``: dtheta^2 / 8 + |dtheta|^3 / 3, ``own``:
+    |dtheta| / 4) and its largest coordinate magnitude at either end [m]:
+    (dy_x, dy_y, dy_z, dev, size)."""
+    x0, y0, z0 = pos0[i, 0], pos0[i, 1], pos0[i, 2]
+    x1, y1, z1 = pos1[i, 0], pos1[i, 1], pos1[i, 2]
+    u = math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
+    size = max(max(max(abs(x0), abs(y0)), max(abs(z0), abs(x1))), max(abs(y1), abs(z1)))
+    return ((c1 * x1 + s1 * y1) - (c0 * x0 + s0 * y0), (c1 * y1 - s1 * x1) - (c0 * y0 - s0 * x0),
+            z1 - z0, math.sqrt(x0 * x0 + y0 * y0) * turn + own * u, size)
+
+
+@njit(inline="always")
+def frame_turn(mo):
+    """The frame's (cos, sin) at the step's start and end and the path terms ``turn`` and
+    ``own`` of :func:`node_motion`, from ``mo.theta``."""
+    th0, th1 = mo.theta[0], mo.theta[1]
+    dth = th1 - th0
+    return (math.cos(th0), math.sin(th0), math.cos(th1), math.sin(th1),
+            dth * dth / 8.0 + abs(dth) ** 3 / 3.0, abs(dth) / 4.0)
+
+
+@njit(inline="always")
+def _apart_by(p, q):
+    """The bound of two nodes' relative motion from their :func:`node_motion` tuples."""
+    return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2) \
+        + p[3] + q[3]
+
+
+@njit(inline="always")
+def moved_pair_motion(mo, pos0, pos1, a, b, c, d, frame):
+    """:func:`pair_motion` from the four nodes' positions as they stand (the chords and
+    departures computed afresh, ``frame`` from :func:`frame_turn`; the round-off slack from
+    the larger of the step's scale and the four nodes' coordinates): valid after impulses
+    moved a node's x_{n+1} since :func:`step_motion`."""
+    c0, s0, c1, s1, turn, own = frame
+    pa = node_motion(pos0, pos1, a, c0, s0, c1, s1, turn, own)
+    pb = node_motion(pos0, pos1, b, c0, s0, c1, s1, turn, own)
+    pc = node_motion(pos0, pos1, c, c0, s0, c1, s1, turn, own)
+    pd = node_motion(pos0, pos1, d, c0, s0, c1, s1, turn, own)
+    big = max(max(mo.scale[0], max(pa[4], pb[4])), max(pc[4], pd[4]))
+    out = max(max(_apart_by(pa, pc), _apart_by(pa, pd)),
+              max(_apart_by(pb, pc), _apart_by(pb, pd)))
+    return out + 8.0 * ROUND * big
 
 
 @njit(inline="always")

@@ -64,12 +64,12 @@ CONTACT_CLOCK = ("near_selection", "closest_points", "push", "motion", "friction
                  "failsafe_round0", "failsafe_rounds", "impact_zones", "reaction",
                  "failsafe_first_call", "after_reactions")
 (N_PUSH, N_NEAR, N_TOUCH, N_RESOLVE, N_READ0, N_LOOK0, N_EXACT0, N_ROUNDS, N_ROUND_PAIRS,
- N_ZONES, N_AGAIN, N_IMPULSES, N_IMPULSES_AGAIN, N_REACTIONS) = range(14)
+ N_ZONES, N_AGAIN, N_IMPULSES, N_IMPULSES_AGAIN, N_REACTIONS, N_ROUND_LOOKED) = range(15)
 CONTACT_TALLY = ("steps", "near_pairs", "pairs_in_contact", "failsafe_calls",
                  "round0_pairs_read", "round0_pairs_looked_at", "round0_pairs_tested",
                  "later_rounds", "later_round_pairs_tested", "impact_zone_calls",
                  "calls_after_reactions", "impulses", "impulses_after_reactions",
-                 "reactions")
+                 "reactions", "later_round_pairs_looked_at")
 
 
 @intrinsic

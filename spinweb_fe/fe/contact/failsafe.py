@@ -12,12 +12,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spinweb_fe.fe.contact.bounds import bound_after, bound_now, pair_motion, step_motion
+from spinweb_fe.fe.contact.bounds import (bound_after, bound_now, frame_turn, moved_pair_motion,
+                                          pair_motion, step_motion)
 from spinweb_fe.fe.contact.clock import (C_AGAIN, C_FRICTION, C_MOTION, C_REACTION, C_RESOLVE,
                                          C_ROUND0, C_ROUNDS, C_ZONES, N_AGAIN, N_EXACT0,
                                          N_IMPULSES, N_IMPULSES_AGAIN, N_LOOK0, N_REACTIONS,
-                                         N_READ0, N_RESOLVE, N_ROUND_PAIRS, N_ROUNDS, N_ZONES,
-                                         cycles, lap)
+                                         N_READ0, N_RESOLVE, N_ROUND_LOOKED, N_ROUND_PAIRS,
+                                         N_ROUNDS, N_ZONES, cycles, lap)
 from spinweb_fe.fe.contact.crossing import SEP, apart, pair_crossings
 from spinweb_fe.fe.contact.distance import closest_points
 from spinweb_fe.fe.contact.impulses import (axis_reaction, body_reaction, friction_impulses,
@@ -136,7 +137,8 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     node an impulse moved; ``cert`` (fe.contact.bounds.Certified), if given, the pairs'
     certificates, the step's motion, the list's adjacency and its elements' activity:
     every pass tests only the pairs they cannot rule out, with the conservative test's
-    least separation. If the rounds run out with crossings
+    least separation (a later pass: the pair's bound at the step's start less its four
+    nodes' motion as the impulses left it, fe.contact.bounds.moved_pair_motion). If the rounds run out with crossings
     left, the pairs still crossing move as impact zones (fe.contact.zones: at most
     ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
     with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
@@ -162,6 +164,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         now = np.zeros(n_nodes, np.bool_)
         left = 0
         certified = cert is not None and rnd == 0
+        frame = (1.0, 0.0, 1.0, 0.0, 0.0, 0.0)
         if rnd >= 1:
             if 8 * np.count_nonzero(moved) < n_nodes:  # the pairs of the nodes the pass moved
                 ensure_adjacency(adj, pairs, elem_nodes)
@@ -171,6 +174,8 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                 if cert is not None:  # (the certificates of the motion as it now stands)
                     step_motion(cert.motion, elem_nodes, cert.active, pos0, pos1)
                     certified = True
+            if cert is not None:
+                frame = frame_turn(cert.motion)
         read, looked, tested = 0, 0, 0
         for p in todo:
             read += 1
@@ -185,6 +190,11 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                     continue
                 looked += 1
                 if bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d) > sep:
+                    continue
+            elif cert is not None and rnd >= 1:  # its start's bound, its motion as it stands
+                looked += 1
+                if bound_now(cert.level, cert.motion, p, e, g) - moved_pair_motion(
+                        cert.motion, pos0, pos1, a, b, c, d, frame) > sep:
                     continue
             tested += 1
             if apart(pos0, pos1, a, b, c, d, sep) or pair_crossings(
@@ -245,6 +255,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                 lap(cert.clock, C_ROUNDS, t0)
                 cert.tally[N_ROUNDS] += 1
                 cert.tally[N_ROUND_PAIRS] += tested
+                cert.tally[N_ROUND_LOOKED] += looked
         if left == 0:
             break
     if left > 0:  # the rounds ran out: the pairs still crossing move as rigid zones
