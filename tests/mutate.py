@@ -529,9 +529,9 @@ MUTANTS = (
            "            fn.compile(sig)\n", "            pass\n",
            "the compile helper forks and compiles nothing", G_START),
     Mutant("later_rounds_read_the_stale_motion", "spinweb_fe/fe/contact/failsafe.py",
-           "                if bound_now(cert.level, cert.motion, p, e, g) - moved_pair_motion(\n"
+           "                        cert.level, cert.motion, p, e, g) - moved_pair_motion(\n"
            "                        cert.motion, pos0, pos1, a, b, c, d, frame) > sep:",
-           "                if bound_now(cert.level, cert.motion, p, e, g) - pair_motion(\n"
+           "                        cert.level, cert.motion, p, e, g) - pair_motion(\n"
            "                        cert.motion, a, b, c, d) > sep:",
            "the fail-safe's later passes read the certificates against the motion before the "
            "impulses moved the nodes (pairs pushed into each other ruled out)", ZONE_TESTS),

@@ -152,6 +152,7 @@ def test_the_fail_safe_never_lets_a_bar_through(speed, angle):
     angles. Momentum to round-off (1e-12); the kinetic energy they take is what the bars
     lose (the step's KE before less after, 1e-9)."""
     from spinweb_fe.fe.contact.failsafe import resolve_crossings
+    from spinweb_fe.fe.contact.zones import ZONE_ROUNDS
 
     dt, radius = 1e-4, 1e-4
     pos = crossed_bars(0.15, angle=angle)
@@ -165,7 +166,7 @@ def test_the_fail_safe_never_lets_a_bar_through(speed, angle):
     for _ in range(int(0.3 / (speed * dt)) + 2):
         new = pos + dt * vel
         taken, _, left = resolve_crossings(PAIR, ELEMS, pos, new, vel, inv_mass, dt,
-                                           0.1 * radius, 20)
+                                           0.1 * radius, 20, None, ZONE_ROUNDS)
         taken_all += taken
         assert left == 0
         crossed += pair_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],

@@ -177,3 +177,4 @@ def test_plain_step_compiles_none_of_it():
         fresh.compile(sig)
         found.append("llvm.readcyclecounter" in fresh.inspect_llvm(sig))
     assert found == [False, True]
+

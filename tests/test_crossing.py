@@ -165,7 +165,7 @@ def test_step_crossings_of_a_net_falling_through_a_line():
     pos0 = pos.copy()
     pos0[:16, 2] += 0.5 * 150 * DT  # the grid starts half a step above the line
     pos1 = pos0 + drop
-    pairs = candidate_pairs(pos0, elems, np.ones(len(elems), bool), 150 * DT)
+    pairs = candidate_pairs(pos0, elems, np.ones(len(elems), np.int8), 150 * DT)
     out = [np.empty(64), np.empty(64, np.int64), np.empty(64, np.int64), np.empty(64, np.int64)]
     n = step_crossings(pairs, elems, pos0, pos1, *out)
     crossed = sorted(int(out[1][i]) for i in range(n))

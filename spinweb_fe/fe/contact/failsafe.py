@@ -80,7 +80,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         lap(clock, C_MOTION, t0)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
-                                       None, ck.follow)
+                                       np.empty(0, np.bool_), ck.follow)
     t0 = cycles()
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
@@ -137,12 +137,13 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     node an impulse moved; ``cert`` (fe.contact.bounds.Certified), if given, the pairs'
     certificates, the step's motion, the list's adjacency and its elements' activity:
     every pass tests only the pairs they cannot rule out, with the conservative test's
-    least separation (a later pass: the pair's bound at the step's start less its four
-    nodes' motion as the impulses left it, fe.contact.bounds.moved_pair_motion). If the rounds run out with crossings
-    left, the pairs still crossing move as impact zones (fe.contact.zones: at most
-    ``zone_rounds`` passes; ``hub`` (4, 3), the hub's motion over the step, for the zones
-    with a node of the hub). ``moved`` (n,) bool, if given: only these nodes moved since
-    a pass found the rest of the list clear (the hub's nodes, placed again after it took a
+    least separation (a later pass: the swept boxes, then the pair's bound at the step's
+    start less its four nodes' motion as the impulses left it,
+    fe.contact.bounds.moved_pair_motion). If the rounds run out with crossings left, the
+    pairs still crossing move as impact zones (fe.contact.zones: at most ``zone_rounds``
+    passes; ``hub`` (4, 3), the hub's motion over the step, for the zones with a node of
+    the hub). ``moved`` (n,) bool, if given and not empty: only these nodes moved since a
+    pass found the rest of the list clear (the hub's nodes, placed again after it took a
     reaction): the first pass tests only their pairs. ``follow`` (n,) bool, if given: the
     free nodes of zones moved with the hub get marked. Returns (kinetic energy the pair
     impulses took [J], pair impulses, crossings left)."""
@@ -150,8 +151,14 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
     taken, impulses, left = 0.0, 0, 0
-    first = 0 if moved is None else 1  # (a later pass's test from the start)
+    # (a later pass's test from the start; an empty ``moved`` is no ``moved``, so that both
+    # of contact_resolve's calls have one type and the loop compiles this function once)
+    first = 1
     if moved is None:
+        first = 0
+        moved = np.ones(pos0.shape[0], np.bool_)
+    if moved.shape[0] == 0:
+        first = 0
         moved = np.ones(pos0.shape[0], np.bool_)
     n_nodes = pos0.shape[0]
     todo = np.arange(pairs.shape[0])
@@ -191,9 +198,10 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
                 looked += 1
                 if bound_now(cert.level, mo, p, e, g) - pair_motion(mo, a, b, c, d) > sep:
                     continue
-            elif cert is not None and rnd >= 1:  # its start's bound, its motion as it stands
+            elif cert is not None and rnd >= 1:  # (the swept boxes first: no sqrt, no level)
                 looked += 1
-                if bound_now(cert.level, cert.motion, p, e, g) - moved_pair_motion(
+                if apart(pos0, pos1, a, b, c, d, sep) or bound_now(
+                        cert.level, cert.motion, p, e, g) - moved_pair_motion(
                         cert.motion, pos0, pos1, a, b, c, d, frame) > sep:
                     continue
             tested += 1
