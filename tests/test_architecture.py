@@ -308,18 +308,3 @@ def test_no_else_on_a_given_argument():
                       "        a = 4\n    return a + b\n")
     assert [h[:2] for h in dead_else_branches(probe)] == [("f", "axis"), ("f", "body")]
 
-
-def test_the_fail_safe_is_called_with_one_type():
-    """contact_resolve calls resolve_crossings twice (a step's first pass, a pass after the
-    hub's reaction); each call spelled out in full, none with a literal None, so that both
-    have one type and a contact loop compiles the fail-safe once (each extra type is about
-    10 s of a cold contact compile): the first hands an empty ``moved``."""
-    tree = ast.parse((ROOT / "spinweb_fe" / "fe" / "contact" / "failsafe.py").read_text())
-    fn = next(n for n in ast.walk(tree)
-              if isinstance(n, ast.FunctionDef) and n.name == "contact_resolve")
-    calls = [c for c in ast.walk(fn) if isinstance(c, ast.Call)
-             and getattr(c.func, "id", None) == "resolve_crossings"]
-    assert len(calls) == 2
-    for c in calls:
-        assert len(c.args) == 14 and not c.keywords
-        assert not any(isinstance(a, ast.Constant) and a.value is None for a in c.args)

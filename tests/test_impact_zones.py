@@ -366,7 +366,7 @@ def test_the_later_passes_certificates_rule_out_only_pairs_that_cannot_meet(scen
         # (the types of the step loop's call: a fixed axis that did not turn, no moved set)
         taken, impulses, left = resolve_crossings(pairs, elems, pos0, p1, v, inv_mass, DT,
                                                   margin, 20, cert, ZONE_ROUNDS, axis_map(0.0),
-                                                  np.empty(0, np.bool_), np.zeros(n, np.bool_))
+                                                  None, np.zeros(n, np.bool_))
         out[name] = (taken, impulses, left, p1, v, cert.tally.copy())
     a, b = out["certified"], out["none"]
     for taken, impulses, left, p1, *_ in (a, b):

@@ -80,7 +80,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         lap(clock, C_MOTION, t0)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
                                        dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
-                                       np.empty(0, np.bool_), ck.follow)
+                                       None, ck.follow)
     t0 = cycles()
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
@@ -142,7 +142,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     fe.contact.bounds.moved_pair_motion). If the rounds run out with crossings left, the
     pairs still crossing move as impact zones (fe.contact.zones: at most ``zone_rounds``
     passes; ``hub`` (4, 3), the hub's motion over the step, for the zones with a node of
-    the hub). ``moved`` (n,) bool, if given and not empty: only these nodes moved since a
+    the hub). ``moved`` (n,) bool, if given: only these nodes moved since a
     pass found the rest of the list clear (the hub's nodes, placed again after it took a
     reaction): the first pass tests only their pairs. ``follow`` (n,) bool, if given: the
     free nodes of zones moved with the hub get marked. Returns (kinetic energy the pair
@@ -151,14 +151,8 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     signs = np.empty(3, np.int64)
     scratch, cuts = np.empty((4, 3)), np.empty(4)
     taken, impulses, left = 0.0, 0, 0
-    # (a later pass's test from the start; an empty ``moved`` is no ``moved``, so that both
-    # of contact_resolve's calls have one type and the loop compiles this function once)
-    first = 1
+    first = 0 if moved is None else 1  # (a later pass's test from the start)
     if moved is None:
-        first = 0
-        moved = np.ones(pos0.shape[0], np.bool_)
-    if moved.shape[0] == 0:
-        first = 0
         moved = np.ones(pos0.shape[0], np.bool_)
     n_nodes = pos0.shape[0]
     todo = np.arange(pairs.shape[0])
