@@ -42,7 +42,10 @@ def digest(folder: Path) -> dict:
 def pvd_entries(path: Path):
     if not path.exists():
         return []
-    root = ET.parse(path).getroot()
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError:  # read while a frame's entry was being written in: poll again
+        return []
     return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
 
 

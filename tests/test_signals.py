@@ -32,7 +32,10 @@ def pvd_entries(path: Path):
     """(time, file) of a web.pvd, [] while it does not exist yet."""
     if not path.exists():
         return []
-    root = ET.parse(path).getroot()
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError:  # read while a frame's entry was being written in: poll again
+        return []
     return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
 
 
