@@ -83,7 +83,7 @@ LINES = (("audit", "motion", "steps"), ("audit", "certificates", "pairs_read"),
          ("contact", "closest_points", "near_pairs"), ("contact", "push", "pairs_in_contact"),
          ("contact", "motion", "steps"), ("contact", "friction", "pairs_in_contact"),
          ("contact", "failsafe_round0", "round0_pairs_tested"),
-         ("contact", "failsafe_rounds", "later_round_pairs_tested"),
+         ("contact", "failsafe_rounds", "later_round_pairs_looked_at"),
          ("contact", "impact_zones", "impact_zone_calls"),
          ("contact", "reaction", "reactions"),
          ("contact", "after_reactions", "calls_after_reactions"))
