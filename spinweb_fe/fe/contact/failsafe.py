@@ -69,9 +69,12 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         hub = body_map(body, h0.centre, h0.quaternion)
     else:
         hub = axis_map(theta - h0.angle[0])
+    # an int64, not the global's literal type: the fail-safe's callees then have the types
+    # a call from Python gives them (the unit tests share the loop's compile)
+    zone_rounds = np.int64(ZONE_ROUNDS)
     if again:
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
+                                       dt, ck.margin, ck.rounds, ck.cert, zone_rounds, hub,
                                        (inv_mass == 0.0) | ck.follow, ck.follow)
     else:
         ck.follow[:] = False
@@ -79,7 +82,7 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
         step_motion(ck.cert.motion, ck.elem_nodes, ck.active, ck.pos0, pos)
         lap(clock, C_MOTION, t0)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.cert, ZONE_ROUNDS, hub,
+                                       dt, ck.margin, ck.rounds, ck.cert, zone_rounds, hub,
                                        None, ck.follow)
     t0 = cycles()
     if rubbed or n > 0:
