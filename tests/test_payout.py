@@ -55,12 +55,20 @@ def test_the_reel_pays_its_law_out(reel):
 
 def test_the_devices_keep_the_angular_momentum():
     """No torque: the reel's reaction and the mass that passes D keep the angular momentum
-    about the fixed axis to round-off (1e-11 relative; measured 1.1e-14), and on a free
-    hub, tilted and out of the plane, the momentum and angular momentum vectors (measured
-    1e-14 and 5.7e-13)."""
+    about the fixed axis to round-off (1e-11 relative; measured 1.1e-14)."""
     h = run(REEL, 0.1)
     K = h["angular_momentum"]
     assert np.abs(K - K[0]).max() < 1e-11 * K[0]
+
+
+# (in make validate: devices on a free hub are a step loop of their own, 20-24 s of a cold
+# compile that no other test shares; the device mutants of tests/mutate.py are killed by the
+# fixed axis's tests above and below)
+@pytest.mark.slow
+def test_the_devices_keep_the_momenta_on_a_free_hub():
+    """No torque, on a free hub tilted and out of the plane: the reel's reaction and the
+    mass that passes D keep the momentum and angular momentum vectors (measured 1e-14 and
+    5.7e-13, bound 1e-11 relative)."""
     h = run(REEL + ["hub.motion='free'", "perturbation.hub_tilt_rate=0.05",
                     "perturbation.z_amplitude=0.5"], 0.1)
     L, P = h["angular_momentum_vector"], h["linear_momentum"]
