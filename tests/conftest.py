@@ -8,7 +8,13 @@ Under pytest-xdist (``make test``: two workers on two cores) the cold start's co
 are busy already, and a helper forked beside a worker's loop compile competes with the
 other worker for a core and compiles the phases the loop compiles at the same moment (a
 cold suite logged 55 s of such compiles). tests/test_warmup.py and
-tests/test_guards_start.py switch it on where they test it."""
+tests/test_guards_start.py switch it on where they test it.
+
+Tests marked ``fresh_compile`` (a cold compile into a numba cache of their own, 15-18 s
+each, whatever ran before) are collected first: pytest-xdist's worksteal gives each worker
+a contiguous share of the list and the idle one steals from the other's end, so a long test
+at the end of a share leaves the other core idle (two of them ran last on one worker, the
+other idle for 26 s of a 283 s suite)."""
 
 import os
 import signal
@@ -30,3 +36,8 @@ def _default_signal_handlers():
         for s, handler in saved.items():
             if handler is not None:
                 signal.signal(s, handler)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The ``fresh_compile`` tests first (a stable sort: the rest keep their order)."""
+    items.sort(key=lambda item: item.get_closest_marker("fresh_compile") is None)

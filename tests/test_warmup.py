@@ -56,6 +56,7 @@ def fresh_env(tmp_path, **extra):
 
 # (two threads, a second cold compile of the demo's whole loop, in make validate: one
 # thread's run kills the phase-type mutant of tests/mutate.py as well)
+@pytest.mark.fresh_compile
 @pytest.mark.parametrize("threads", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
     """With the helper's phases compiled first (their types as phase_jobs builds them), the
@@ -75,6 +76,7 @@ def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
     assert not jobs & loop, f"compiled again by the loop: {sorted(jobs & loop)}"
 
 
+@pytest.mark.fresh_compile
 def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp_path):
     """A cold `spinweb run` of the demo (0.1 s) with the helper, then the same run with it
     off (warm cache): exit 0, bit-identical histories; after the first run's exit no
