@@ -202,17 +202,26 @@ def test_a_zone_with_a_held_node_moves_with_the_hub():
 def test_the_passes_after_the_first_see_every_pair_of_the_moved_nodes():
     """fe.contact.zones.pairs_of, on the column's pairs: for any set of moved nodes it gives exactly
     the pairs with an element that has one of them, each once, sorted (the later passes of
-    the fail-safe and the zones test these instead of the whole list)."""
+    the fail-safe and the zones test these instead of the whole list). Both of its ways:
+    a few pairs sorted, and many (more than a 32nd of the list) read off the stamps in the
+    list's order; a column of the column's pairs repeated 40 times (other elements) gives
+    the few."""
     from spinweb_fe.fe.contact.zones import pair_adjacency, pairs_of
 
     pairs, elems, *_ = column()
-    adj = pair_adjacency(pairs, elems, 2 * LAYERS)
+    n_el, n = len(elems), 2 * LAYERS
+    elems = np.concatenate([elems + n * k for k in range(40)])  # 40 columns side by side
+    pairs = np.concatenate([pairs + n_el * k for k in range(40)])
+    adj = pair_adjacency(pairs, elems, 40 * n)
     rng = np.random.default_rng(1)
-    for tick in range(20):
-        moved = rng.random(2 * LAYERS) < 0.2
+    ways = set()
+    for tick in range(40):
+        moved = rng.random(40 * n) < (0.2 if tick % 2 else 0.002)
         want = [p for p, (e, g) in enumerate(pairs)
                 if moved[elems[e]].any() or moved[elems[g]].any()]
         assert list(pairs_of(adj, moved)) == want
+        ways.add(32 * len(want) < len(pairs))
+    assert ways == {True, False}
 
 
 def _body(rng):

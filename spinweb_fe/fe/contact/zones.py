@@ -101,7 +101,11 @@ def pair_adjacency(pairs, elem_nodes, n):
 
 @njit(cache=True)
 def pairs_of(adj, moved):
-    """The pairs (sorted) with a node in ``moved`` (n,) bool, each once (``adj`` filled)."""
+    """The pairs (sorted) with a node in ``moved`` (n,) bool, each once (``adj`` filled).
+    The marked pairs in the list's order: a read of the stamps when they are more than a
+    32nd of the list (a sequential pass, 2.7-4 ns a pair reached, where numba's sort of the
+    pairs took 13-46 ns a pair for 5 000-17 000 of 30 000, the sort growing with k log k),
+    else a sort of the few."""
     adj.clock[0] += 1
     tick = adj.clock[0]
     ptr, idx, stamp = adj.ptr, adj.idx, adj.stamp
@@ -120,7 +124,14 @@ def pairs_of(adj, moved):
                 stamp[p] = tick
                 out[k] = p
                 k += 1
-    return np.sort(out[:k])
+    if 32 * k < stamp.shape[0]:
+        return np.sort(out[:k])
+    j = 0
+    for p in range(stamp.shape[0]):
+        if stamp[p] == tick:
+            out[j] = p
+            j += 1
+    return out[:k]
 
 
 @njit(cache=True)
