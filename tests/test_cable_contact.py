@@ -240,8 +240,11 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
     from spinweb_fe.record.crossings import CrossingAudit
 
     @njit
-    def again(ck, pos, vel, inv_mass, dt, rate, inertia):
-        return contact_resolve(ck, pos, vel, inv_mass, dt, rate, inertia, None, 0.0, True)
+    def again(ck, pos, vel, inv_mass, dt, rate, inertia, flag, place):
+        # (the flags as arguments, not literals: contact_resolve then has the step loop's
+        # types and this test loads the loop's compile)
+        return contact_resolve(ck, pos, vel, inv_mass, dt, rate, inertia, None, 0.0, flag,
+                               place)
 
     dt, radius = 1e-4, 1e-3
     elems = [[0, 1], [2, 3], [4, 5], [6, 7]]
@@ -260,7 +263,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
     ck = contact.on_list(audit.kernel_data, 1)
     ck.pos0[:] = pos0
     rate, inertia = np.array([1.0]), np.array([1e3])
-    impulses, left = again(ck, pos1, vel, inv_mass, dt, rate, inertia)
+    impulses, left = again(ck, pos1, vel, inv_mass, dt, rate, inertia, True, True)
     times, signs = np.empty(3), np.empty(3, np.int64)
 
     def crossed(e, g):

@@ -306,8 +306,13 @@ def forces_of(elems, strength, ss, pos, vel, threads=None, block=16):
     """The step's element pass (strength pass when ``strength`` checks) summed per node:
     (n, 3), blocks of ``block`` elements."""
     work = make_work(len(pos), len(elems.nodes), threads or 1, block, elem_nodes=elems.nodes)
+    # the types the step loop gives the pass (the model's read-only element ends and rest
+    # lengths, no device): these calls load the loop's compile instead of making their own
+    nodes, rest = elems.nodes.copy(), elems.rest_len.copy()
+    nodes.flags.writeable = rest.flags.writeable = False
+    elems = elems._replace(nodes=nodes, rest_len=rest)
     step.element_pass(elems, make_links(elems.nodes, len(pos)), strength, ss, pos, vel, work,
-                      True, 1e-5, threads)
+                      True, 1e-5, threads, None, None)
     return work.force
 
 
@@ -354,7 +359,8 @@ def test_strength_loop_is_the_plain_loop_and_threads_agree():
     m = len(nodes)
     rest = np.linalg.norm(pos[nodes[:, 1]] - pos[nodes[:, 0]], axis=1) / (1 + 0.1 * rng.random(m))
     elems = Elements(nodes, rest, 1.0 / rest, np.full(m, EA), np.full(m, 30.0), True)
-    plain = forces_of(elems, None, strength_start(rupture.no_strength()), pos, vel)
+    plain = forces_of(elems, rupture.no_strength(), strength_start(rupture.no_strength()), pos,
+                      vel)
     assert np.array_equal(plain, scatter_forces(elems, pos, vel))
     margins = make_strength(m, 0.05, False)
     checked = forces_of(elems, margins, strength_start(margins), pos, vel)

@@ -292,7 +292,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         if holding:  # the reels and brakes let their lines out
             device_phase(axis, body, devices, elems, nodes, hub, coil, cs, rs, mv, hs,
                          (step + 1) * dt, dt)
-        fresh, clean = False, False
+        # (not the literals: with them the audit's step compiles again for a run without contact)
+        fresh, clean = np.bool_(False), np.bool_(False)
         if contact is not None:
             fresh, clean = settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass,
                                   hs, dt)

@@ -220,9 +220,8 @@ def axis_map(dtheta):
 def body_map(rs, centre0, q0):
     """(4, 3): a free hub's motion since its hub centre was ``centre0`` [m] and its attitude
     ``q0`` (fe.contact.impulses.body_snapshot) to its pose now, x -> A x + c with A = R R0^T, c =
-    C - A C0 (None without a body)."""
-    if rs is None:
-        return None
+    C - A C0. (No None case: a branch returning None would type the map Optional, and every
+    callee of the free hub's fail-safe would compile a second time for it.)"""
     R = rotation(rs.quaternion)
     R0 = rotation(q0)
     out = np.zeros((4, 3))
