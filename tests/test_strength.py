@@ -23,6 +23,7 @@ from spinweb_fe.case.scene import prepare
 from spinweb_fe.cli import main
 from spinweb_fe.cli.info import summary
 from spinweb_fe.fe import rupture, step
+from spinweb_fe.fe.coil.levels import coil_start, no_coil
 from spinweb_fe.fe.forces import make_links, make_work
 from spinweb_fe.fe.model import Elements
 from spinweb_fe.fe.rupture import make_strength, strength_start
@@ -312,7 +313,7 @@ def forces_of(elems, strength, ss, pos, vel, threads=None, block=16):
     nodes.flags.writeable = rest.flags.writeable = False
     elems = elems._replace(nodes=nodes, rest_len=rest)
     step.element_pass(elems, make_links(elems.nodes, len(pos)), strength, ss, pos, vel, work,
-                      True, 1e-5, threads, None, None)
+                      True, 1e-5, threads, None, coil_start(no_coil()))
     return work.force
 
 
