@@ -2,6 +2,7 @@
 #26, #42).
 
     python -m benchmarks.contact_cost [--quick] [--scenes NAME,...] [--repeat 1]
+                                      [--threads 1,2]
 
 Scenes (docs/contact.md, docs/performance.md), each folded with a 5 mm layer gap
 (``fold.layer_gap``), one thread:
@@ -15,7 +16,8 @@ Scenes (docs/contact.md, docs/performance.md), each folded with a 5 mm layer gap
 
 Variants: the plain step loop, the audit (``audit.crossings``) and the contact
 (``contact.cables``, which runs the audit too), as a user turns them on (the case's keys,
-``run.features.features_of``). The variants of a scene run round-robin (A B C, ``repeat``
+``run.features.features_of``); with ``--threads 1,2`` each on one and on two threads
+(``audit@2``: its ratio is against the plain loop on as many threads). The variants of a scene run round-robin (A B C, ``repeat``
 times, fastest kept) after one short run of each that compiles or loads its loop. The time
 is the step loop's (``RunResult.loop_s``: the compiled loop and the list rebuilds between
 its calls, not the compile). Beside it: the seconds in the list's rebuilds (the broad phase,
@@ -87,7 +89,7 @@ class _BuildClock:
         CrossingAudit.build = self._orig
 
 
-def run(case_name: str, keys: list, end: float, variant: str) -> dict:
+def run(case_name: str, keys: list, end: float, variant: str, threads: int = 1) -> dict:
     """Loop seconds, steps and what the audit and the contact saw for one variant."""
     case = case_mod.load(ROOT / "cases" / f"{case_name}.toml",
                          [*GAP, *keys, *MODES[variant], f"time.end={end}"])
@@ -95,7 +97,7 @@ def run(case_name: str, keys: list, end: float, variant: str) -> dict:
     features = features_of(scene.model, scene.state, case)
     with _BuildClock() as clock:
         res = simulate(scene.model, scene.control, scene.state, scene.dt, Schedule(end, 1e-3),
-                       threads=1, features=features)
+                       threads=threads, features=features)
     out = {"loop_s": res.loop_s, "steps": res.steps, "elements": scene.model.n_elems,
            "dt": scene.dt, "end": end, "build_s": clock.seconds}
     if clock.lists:  # pair-steps: the listed pairs summed over the steps they were listed
@@ -193,23 +195,32 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="the first 0.1 s of the feedback web")
     ap.add_argument("--scenes", help=f"comma-separated, of {', '.join(SCENES)}")
     ap.add_argument("--out", default=str(OUT / "contact_cost.json"))
+    ap.add_argument("--threads", default="1",
+                    help="comma-separated thread counts, each a variant of its own (1,2)")
     args = ap.parse_args(argv)
+    counts = [int(t) for t in args.threads.split(",")]
     names = (["feedback_0.1"] if args.quick else
              args.scenes.split(",") if args.scenes else list(FULL))
-    info = {"machine_start": machine(), "threads": 1, "repeat": args.repeat}
+    info = {"machine_start": machine(), "threads": counts, "repeat": args.repeat}
     results = []
     for name in names:
         case_name, keys, end, variants = SCENES[name]
-        for v in variants:  # compile (or load from the cache) each variant's loop
-            run(case_name, keys, min(end, 2e-3), v)
+        # (a variant on more threads than one is named by them: "audit@2")
+        runs = [(v, t) for t in counts for v in variants]
+        named = {(v, t): v if t == 1 else f"{v}@{t}" for v, t in runs}
+        for v, t in runs:  # compile (or load from the cache) each variant's loop
+            run(case_name, keys, min(end, 2e-3), v, t)
         best = {}
         for _ in range(args.repeat):
-            for v in variants:
-                r = run(case_name, keys, end, v)
-                if v not in best or r["loop_s"] < best[v]["loop_s"]:
-                    best[v] = r
-        per_plain = best["plain"]["loop_s"] / best["plain"]["steps"]
+            for v, t in runs:
+                r = run(case_name, keys, end, v, t)
+                r["threads"] = t
+                if named[v, t] not in best or r["loop_s"] < best[named[v, t]]["loop_s"]:
+                    best[named[v, t]] = r
         for v, r in best.items():
+            # (each variant against the plain loop on as many threads)
+            plain = best[named["plain", r["threads"]]]
+            per_plain = plain["loop_s"] / plain["steps"]
             r.update(scene=name, case=case_name, keys=keys, variant=v,
                      us_per_step=1e6 * r["loop_s"] / r["steps"],
                      ratio=r["loop_s"] / r["steps"] / per_plain)
@@ -217,7 +228,7 @@ def main(argv=None):
                 rest = r["loop_s"] - r["build_s"] - per_plain * r["steps"]
                 r["ns_per_pair_step"] = 1e9 * rest / r["pair_steps"]
                 r["pairs_mean"] = r["pair_steps"] / r["steps"]
-            if v != "plain":
+            if not v.startswith("plain"):
                 r["profile"] = breakdown(r, per_plain)
             results.append(r)
             print(f"{name:14s} {v:8s} {r['us_per_step']:9.1f} us/step  x{r['ratio']:7.1f}  "
@@ -250,10 +261,10 @@ def plot(results, path):
     fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 4.6), squeeze=False)
     for ax, scene in zip(axes[0], scenes):
         rows = [r for r in results if r["scene"] == scene]
-        plain = next(r for r in rows if r["variant"] == "plain")
-        per_plain = 1e6 * plain["loop_s"] / plain["steps"]
+        plain = {r.get("threads", 1): 1e6 * r["loop_s"] / r["steps"] for r in rows
+                 if r["variant"].startswith("plain")}
         for i, r in enumerate(rows):
-            parts = {"plain step": per_plain,
+            parts = {"plain step": plain[r.get("threads", 1)],
                      "list rebuilds": 1e6 * r["build_s"] / r["steps"]}
             for lab, row in r.get("profile", {}).get("passes", {}).items():
                 parts[lab] = row["ns_per_step"] / 1e3

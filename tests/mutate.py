@@ -461,8 +461,10 @@ MUTANTS = (
            "        if min(inv_mass[a], inv_mass[b], inv_mass[c], inv_mass[d]) == 0.0:",
            "the penalty leaves out every pair with a held or tied node", CONTACT_TESTS),
     Mutant("again_pass_tests_nothing", "spinweb_fe/fe/contact/failsafe.py",
-           "                                       (inv_mass == 0.0) | ck.follow, ck.follow)",
-           "                                       (inv_mass < 0.0) & ck.follow, ck.follow)",
+           "                                       (inv_mass == 0.0) | ck.follow, ck.follow, "
+           "threads)",
+           "                                       (inv_mass < 0.0) & ck.follow, ck.follow, "
+           "threads)",
            "the pass after the hub placed its nodes again tests none of their pairs",
            CONTACT_TESTS),
     Mutant("audit_world_frame_skin", "spinweb_fe/fe/contact/touch.py",

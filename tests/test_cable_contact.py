@@ -166,7 +166,7 @@ def test_the_fail_safe_never_lets_a_bar_through(speed, angle):
     for _ in range(int(0.3 / (speed * dt)) + 2):
         new = pos + dt * vel
         taken, _, left = resolve_crossings(PAIR, ELEMS, pos, new, vel, inv_mass, dt,
-                                           0.1 * radius, 20, None, ZONE_ROUNDS)
+                                           0.1 * radius, (20, ZONE_ROUNDS), None)
         taken_all += taken
         assert left == 0
         crossed += pair_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],
@@ -244,7 +244,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
         # (the flags as arguments, not literals: contact_resolve then has the step loop's
         # types and this test loads the loop's compile)
         return contact_resolve(ck, pos, vel, inv_mass, dt, rate, inertia, None, 0.0, flag,
-                               place)
+                               place, None)
 
     dt, radius = 1e-4, 1e-3
     elems = [[0, 1], [2, 3], [4, 5], [6, 7]]
@@ -290,7 +290,8 @@ def test_the_layered_paper_web_unfolds_without_a_crossing(tmp_path):
     the held coil); with the contact (the cable's own radius,
     1.8 mm) none, the energy balance closing with the contact's terms within 1e-3 and
     the angular momentum audit as without (docs/solver.md); two threads give the same
-    bits."""
+    bits, and the audit alone on two threads (its certificates in blocks,
+    fe.contact.touch.certified_blocks) the same crossings in the same order."""
     import h5py
 
     from pathlib import Path
@@ -301,17 +302,23 @@ def test_the_layered_paper_web_unfolds_without_a_crossing(tmp_path):
     root = Path(__file__).resolve().parents[1]
     base = ["fold.layer_gap=0.005", "time.end=0.1", "output.frame_dt=0"]
     counts, hist = {}, {}
-    runs = (("audit", ["audit.crossings=true"], 1), ("contact", ["contact.cables=true"], 1),
-            ("contact_2", ["contact.cables=true"], 2))
+    runs = (("audit", ["audit.crossings=true"], 1), ("audit_2", ["audit.crossings=true"], 2),
+            ("contact", ["contact.cables=true"], 1), ("contact_2", ["contact.cables=true"], 2))
+    logs = {}
     for name, extra, threads in runs:
         run_case(case_mod.load(root / "cases" / "paper_feedback_web.toml", base + extra),
                  tmp_path / name, progress=False, threads=threads)
         with h5py.File(tmp_path / name / "results.h5") as f:
             counts[name] = int(f["crossings"].attrs["count"])
             hist[name] = {k: f["history"][k][:] for k in f["history"]}
+            logs[name] = {k: v[:] for k, v in f["crossings"].items()
+                          if isinstance(v, h5py.Dataset)}
             assert f["verdict/energy"].attrs["value"] < 1e-3
             assert f["verdict/momentum"].attrs["passed"] == 1
-    assert counts["audit"] > 100
+    assert counts["audit"] == counts["audit_2"] > 100
+    assert logs["audit"]  # the audit on two threads: the same log
+    for key, value in logs["audit"].items():
+        assert np.array_equal(value, logs["audit_2"][key]), key
     assert counts["contact"] == counts["contact_2"] == 0
     for key, value in hist["contact"].items():  # two threads: the same bits
         assert np.array_equal(value, hist["contact_2"][key]), key

@@ -70,12 +70,12 @@ def test_the_pair_rounds_can_run_out():
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     inv_mass[[0, 1, -2, -1]] = 0.0
     _, impulses, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4,
-                                          20, None, 0)
+                                          (20, 0), None)
     assert impulses > 20 and left > 0
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     inv_mass[[0, 1, -2, -1]] = 0.0
-    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4, 20, None,
-                                   ZONE_ROUNDS)
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4,
+                                   (20, ZONE_ROUNDS), None)
     # (left: the crossings of pairs the fail-safe can act on; the two held bars' own
     # crossing, which no impulse can change, only the audit counts)
     assert left > 0 and crossings(pairs, elems, pos0, pos1) == left + 1
@@ -104,13 +104,13 @@ def test_a_squeeze_the_pair_rounds_cannot_part_is_parted_by_a_zone():
     1e-12."""
     pairs, elems, pos0, pos1, vel, inv_mass = squeeze()
     _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, WIDE_MARGIN,
-                                   20, None, 0)
+                                   (20, 0), None)
     assert left > 0 and crossings(pairs, elems, pos0, pos1) > 0
     pairs, elems, pos0, pos1, vel, inv_mass = squeeze()
     P0, _ = momenta(pos1, vel, inv_mass)
     scale = (np.abs(vel[:, 2]) / inv_mass).max()  # the heavy bars' momentum [N s]
     _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, WIDE_MARGIN,
-                                   20, None, ZONE_ROUNDS)
+                                   (20, ZONE_ROUNDS), None)
     assert left == 0 and crossings(pairs, elems, pos0, pos1) == 0
     assert rigid(vel, pos0)
     P1, _ = momenta(pos1, vel, inv_mass)
@@ -125,8 +125,8 @@ def test_after_the_zones_no_pair_crosses():
     their couple; the hub takes it in a run, fe.contact.impulses.)"""
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     P0, _ = momenta(pos1, vel, inv_mass)
-    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4, 1,
-                                   None, ZONE_ROUNDS)
+    _, _, left = resolve_crossings(pairs, elems, pos0, pos1, vel, inv_mass, DT, 1e-4,
+                                   (1, ZONE_ROUNDS), None)
     assert left == 0
     assert crossings(pairs, elems, pos0, pos1) == 0
     P1, _ = momenta(pos1, vel, inv_mass)
@@ -172,8 +172,8 @@ def test_the_margin_of_the_pair_impulses_is_unchanged():
     e2 = np.array([[0, 1], [2, 3]], np.int64)
     idx = np.array([0, 1, 8, 9])
     p0, p1, v, im = pos0[idx].copy(), pos1[idx].copy(), vel[idx].copy(), inv_mass[idx].copy()
-    _, impulses, left = resolve_crossings(sub, e2, p0, p1, v, im, DT, MARGIN * 1e-3, 20, None,
-                                            ZONE_ROUNDS)
+    _, impulses, left = resolve_crossings(sub, e2, p0, p1, v, im, DT, MARGIN * 1e-3,
+                                            (20, ZONE_ROUNDS), None)
     assert impulses == 1 and left == 0
     assert crossings(sub, e2, p0, p1) == 0
 
@@ -374,8 +374,9 @@ def test_the_later_passes_certificates_rule_out_only_pairs_that_cannot_meet(scen
         step_motion(cert.motion, elems, cert.active, pos0, p1)
         # (the types of the step loop's call: a fixed axis that did not turn, no moved set)
         taken, impulses, left = resolve_crossings(pairs, elems, pos0, p1, v, inv_mass, DT,
-                                                  margin, 20, cert, ZONE_ROUNDS, axis_map(0.0),
-                                                  None, np.zeros(n, np.bool_))
+                                                  margin, (20, ZONE_ROUNDS), cert,
+                                                  axis_map(0.0), None, np.zeros(n, np.bool_),
+                                                  None)
         out[name] = (taken, impulses, left, p1, v, cert.tally.copy())
     a, b = out["certified"], out["none"]
     for taken, impulses, left, p1, *_ in (a, b):

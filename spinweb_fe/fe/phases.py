@@ -161,24 +161,25 @@ def reacted(axis, body, hub, coil, cs, rs, pos, vel, hs, dw, dt):
 
 
 @njit(inline="always")
-def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt):
+def settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass, hs, dt, threads):
     """The contact's fail-safe at the step's end (fe.contact.penalty.contact_resolve). When its
     impulses pushed on the hub, the hub takes the reaction and places its tied and held
     nodes again (:func:`reacted`), and the pairs those nodes have are tested again, at most
     fe.contact.touch.REACTIONS passes in all; in the last the reaction changes the hub's velocities
     only, not its pose, so that nothing moves after the pass that tested it (the passes can
     go on pushing a cable pinched between two of the hub's elements). Returns (fresh,
-    clean) for fe.contact.touch.audit_step: the swept boxes stand; nothing crossed."""
+    clean) for fe.contact.touch.audit_step: the swept boxes stand; nothing crossed.
+    ``threads``: the step's (fe.contact.failsafe.resolve_crossings)."""
     fresh, clean = True, True
     for k in range(REACTIONS):
         place = k < REACTIONS - 1
         n, left = 0, 0
         if axis is not None:  # (two ifs: an else would compile the free hub's on an axis)
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, hs.rate, hs.inertia,
-                                      None, hs.angle[0], k > 0, place)
+                                      None, hs.angle[0], k > 0, place, threads)
         if body is not None:
             n, left = contact_resolve(contact, pos, vel, inv_mass, dt, None, None, rs,
-                                      hs.angle[0], k > 0, place)
+                                      hs.angle[0], k > 0, place, threads)
         took = contact.hub0.took[0]
         fresh = fresh and n == 0 and not took
         clean = fresh and left == 0

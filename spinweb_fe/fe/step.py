@@ -296,8 +296,8 @@ def advance(model, axis, body, law, state, work, rec, dt, nsteps, vec=None, thre
         fresh, clean = np.bool_(False), np.bool_(False)
         if contact is not None:
             fresh, clean = settle(axis, body, hub, coil, cs, rs, contact, pos, vel, inv_mass,
-                                  hs, dt)
-        if touch_end(audit, pos, t, dt, front, fresh, clean):
+                                  hs, dt, threads)
+        if touch_end(audit, pos, t, dt, front, fresh, clean, threads):
             return SERVICE, nrec
     return 0, nrec
 

@@ -250,9 +250,10 @@ class CrossingAudit(Feature):
         the list went stale (scripted motions: tests)."""
         self.kernel_data.pos0[:] = pos0
         self.kernel_data.motion.theta[0] = self.frame_angle[0]
-        # (fresh and clean given, as the step loop gives them: one compile for both)
+        # (fresh, clean and threads given, as a one-thread step loop gives them: one
+        # compile for both)
         audit_step(self.kernel_data, state.node_pos, t0, dt,
-                   np.asarray(state.coil.front, np.int64), False, False)
+                   np.asarray(state.coil.front, np.int64), False, False, None)
         self.service(state)
 
     def table(self) -> dict:

@@ -46,6 +46,13 @@ from numba import njit
 #: relative round-off allowed for in a computed distance (its bound is lowered by this
 #: times the largest coordinate)
 ROUND = 1e-13
+#: the certificates of a whole list (the audit's, fe.contact.touch.certified_blocks; the
+#: fail-safe's first pass, fe.contact.failsafe.certified_candidates) run on the step's threads
+#: for a list of at least this many pairs (below it the threads' start costs more than the
+#: pass), cut into this many blocks a thread (a block's exact tests are uneven: more blocks
+#: than threads even the load)
+THREAD_MIN_PAIRS = 20000
+BLOCKS_PER_THREAD = 4
 
 
 class StepMotion(NamedTuple):

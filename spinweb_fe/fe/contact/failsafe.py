@@ -10,10 +10,11 @@ penalty of the step's start is fe.contact.penalty.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from spinweb_fe.fe.contact.bounds import (bound_after, bound_now, frame_turn, moved_pair_motion,
-                                          pair_motion, step_motion)
+from spinweb_fe.fe.contact.bounds import (BLOCKS_PER_THREAD, THREAD_MIN_PAIRS, bound_after,
+                                          bound_now, frame_turn, moved_pair_motion, pair_motion,
+                                          step_motion)
 from spinweb_fe.fe.contact.clock import (C_AGAIN, C_FRICTION, C_MOTION, C_REACTION, C_RESOLVE,
                                          C_ROUND0, C_ROUNDS, C_ZONES, N_AGAIN, N_EXACT0,
                                          N_IMPULSES, N_IMPULSES_AGAIN, N_LOOK0, N_REACTIONS,
@@ -30,7 +31,7 @@ from spinweb_fe.fe.contact.zones import (ZONE_ROUNDS, axis_map, body_map, ensure
 
 @njit(cache=True, no_cpython_wrapper=True)
 def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=None,
-                    theta=0.0, again=False, place=True):
+                    theta=0.0, again=False, place=True, threads=None):
     """The fail-safe over the step just taken from ``ck.pos0`` (the step's motion and the
     pairs' certificates first: fe.contact.bounds). Returns its impulses (0: the positions
     and the motion stand) and the crossings its last
@@ -50,7 +51,8 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     against its certificates for the motion as it then stands (the profile measured this
     pass at 22-29 ns a listed pair uncertified, 21-33 % of a contact step, for 0-0.1
     impulses a step). ``place`` False: the hub's reaction changes its velocities only, not its
-    pose (fe.step.settle's last pass; fe.contact.impulses). Timed into the profile (``ck.cert.clock``, ``tally``:
+    pose (fe.step.settle's last pass; fe.contact.impulses). ``threads``: as
+    :func:`resolve_crossings` takes them. Timed into the profile (``ck.cert.clock``, ``tally``:
     fe.contact.clock)."""
     clock, tally = ck.cert.clock, ck.cert.tally
     start = cycles()
@@ -74,16 +76,16 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     zone_rounds = np.int64(ZONE_ROUNDS)
     if again:
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.cert, zone_rounds, hub,
-                                       (inv_mass == 0.0) | ck.follow, ck.follow)
+                                       dt, ck.margin, (ck.rounds, zone_rounds), ck.cert, hub,
+                                       (inv_mass == 0.0) | ck.follow, ck.follow, threads)
     else:
         ck.follow[:] = False
         t0 = cycles()
         step_motion(ck.cert.motion, ck.elem_nodes, ck.active, ck.pos0, pos)
         lap(clock, C_MOTION, t0)
         _, n, left = resolve_crossings(ck.pairs, ck.elem_nodes, ck.pos0, pos, vel, inv_mass,
-                                       dt, ck.margin, ck.rounds, ck.cert, zone_rounds, hub,
-                                       None, ck.follow)
+                                       dt, ck.margin, (ck.rounds, zone_rounds), ck.cert, hub,
+                                       None, ck.follow, threads)
     t0 = cycles()
     if rubbed or n > 0:
         # the energy the impulses took, as the leapfrog books a force at step n: J . (v_{n-1/2}
@@ -124,9 +126,45 @@ def contact_resolve(ck, pos, vel, inv_mass, dt, rate=None, inertia=None, body=No
     return n, left
 
 
+@njit(cache=True, parallel=True)
+def certified_candidates(pairs, elem_nodes, level, mo, sep, blocks):
+    """The first pass's certificates (:func:`resolve_crossings`) on numba's threads: the pairs
+    whose certificates cannot rule them out, in the list's order, and how many were looked
+    at by their relative motion. A first pass moves no certificate (``level`` and ``mo``
+    stand until its end; only its exact tests read the positions the impulses move), so
+    the pass that then tests these pairs in order is the one-thread pass, bit for bit. The
+    list is cut into ``blocks`` runs, each writing its pairs from its own start."""
+    m = pairs.shape[0]
+    size = (m + blocks - 1) // blocks
+    found = np.empty(m, np.int64)
+    counts = np.zeros((blocks, 2), np.int64)
+    for c in prange(blocks):
+        lo = min(m, c * size)
+        k, looked = lo, 0
+        for p in range(lo, min(m, lo + size)):
+            e, g = pairs[p, 0], pairs[p, 1]
+            if bound_after(level, mo, p, e, g) > sep:
+                continue
+            looked += 1
+            a, b = elem_nodes[e, 0], elem_nodes[e, 1]
+            if bound_now(level, mo, p, e, g) - pair_motion(mo, a, b, elem_nodes[g, 0],
+                                                             elem_nodes[g, 1]) > sep:
+                continue
+            found[k] = p
+            k += 1
+        counts[c, 0], counts[c, 1] = k - lo, looked
+    n = 0
+    for c in range(blocks):
+        lo = min(m, c * size)
+        for i in range(counts[c, 0]):  # (forward: n <= lo)
+            found[n + i] = found[lo + i]
+        n += counts[c, 0]
+    return found[:n].copy(), counts[:, 1].sum()
+
+
 @njit(cache=True)
 def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, rounds,
-                      cert=None, zone_rounds=ZONE_ROUNDS, hub=None, moved=None, follow=None):
+                      cert=None, hub=None, moved=None, follow=None, threads=None):
     """The fail-safe of the contact (after Bridson, Fedkiw and Anderson's cloth collisions):
     every candidate pair that would pass through each other over the step (from ``pos0``
     to ``pos1``, fe.contact.crossing's exact test) gets an impulse along the normal of the two
@@ -136,19 +174,23 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     (x_{n+1} by dt times the velocity's change). A node that does not move freely
     (inv_mass 0: held on or tied to the hub) takes no share (its side is infinitely heavy
     within the pass; the hub takes the reaction afterwards, :func:`contact_resolve`). The
-    first pass tests every pair, later passes (at most ``rounds`` in all) the pairs with a
+    first pass tests every pair, later passes (``rounds``: at most ``rounds[0]`` passes in
+    all, then at most ``rounds[1]`` of the impact zones) the pairs with a
     node an impulse moved; ``cert`` (fe.contact.bounds.Certified), if given, the pairs'
     certificates, the step's motion, the list's adjacency and its elements' activity:
     every pass tests only the pairs they cannot rule out, with the conservative test's
     least separation (a later pass: the swept boxes, then the pair's bound at the step's
     start less its four nodes' motion as the impulses left it,
     fe.contact.bounds.moved_pair_motion). If the rounds run out with crossings left, the
-    pairs still crossing move as impact zones (fe.contact.zones: at most ``zone_rounds``
+    pairs still crossing move as impact zones (fe.contact.zones: at most ``rounds[1]``
     passes; ``hub`` (4, 3), the hub's motion over the step, for the zones with a node of
     the hub). ``moved`` (n,) bool, if given: only these nodes moved since a
     pass found the rest of the list clear (the hub's nodes, placed again after it took a
     reaction): the first pass tests only their pairs. ``follow`` (n,) bool, if given: the
-    free nodes of zones moved with the hub get marked. Returns (kinetic energy the pair
+    free nodes of zones moved with the hub get marked. ``threads`` (None: one thread, no
+    thread kernel compiled): the first pass's certificates of a list of at least
+    fe.contact.bounds.THREAD_MIN_PAIRS pairs on that many threads
+    (:func:`certified_candidates`: the same bits). Returns (kinetic energy the pair
     impulses took [J], pair impulses, crossings left)."""
     times = np.empty(3)
     signs = np.empty(3, np.int64)
@@ -162,7 +204,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
     adj = no_adjacency(n_nodes, pairs.shape[0]) if cert is None else cert.adj
     sep = 0.0 if cert is None else SEP * cert.motion.scale[0]
     t0 = 0
-    for rnd in range(first, rounds):
+    for rnd in range(first, rounds[0]):
         if cert is not None:
             t0 = cycles()
         now = np.zeros(n_nodes, np.bool_)
@@ -181,6 +223,14 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             if cert is not None:
                 frame = frame_turn(cert.motion)
         read, looked, tested = 0, 0, 0
+        ahead = False  # the first pass's certificates read on the threads
+        if threads is not None and cert is not None:  # (pruned by numba when None)
+            if certified and rnd == 0 and pairs.shape[0] >= THREAD_MIN_PAIRS:
+                todo, looked = certified_candidates(pairs, elem_nodes, cert.level,
+                                                    cert.motion, sep,
+                                                    BLOCKS_PER_THREAD * threads)
+                read = pairs.shape[0] - todo.shape[0]
+                ahead = True
         for p in todo:
             read += 1
             e, g = pairs[p, 0], pairs[p, 1]
@@ -188,7 +238,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
             c, d = elem_nodes[g, 0], elem_nodes[g, 1]
             if rnd >= 1 and not (moved[a] or moved[b] or moved[c] or moved[d]):
                 continue
-            if certified:
+            if certified and not ahead:
                 mo = cert.motion
                 if bound_after(cert.level, mo, p, e, g) > sep:
                     continue
@@ -267,7 +317,7 @@ def resolve_crossings(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt, margin, 
         if cert is not None:
             t0 = cycles()
         _, left = impact_zones(pairs, elem_nodes, pos0, pos1, vel, inv_mass, dt,
-                               zone_rounds, hub, moved, adj, follow)
+                               rounds[1], hub, moved, adj, follow)
         if cert is not None and first == 0:
             lap(cert.clock, C_ZONES, t0)
             cert.tally[N_ZONES] += 1

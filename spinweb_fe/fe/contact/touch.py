@@ -32,10 +32,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from spinweb_fe.fe.contact.bounds import (ROUND, StepMotion, bound_now, pair_motion, set_level,
-                                          step_motion)
+from spinweb_fe.fe.contact.bounds import (BLOCKS_PER_THREAD, ROUND, THREAD_MIN_PAIRS, StepMotion,
+                                          bound_now, pair_motion, set_level, step_motion)
 from spinweb_fe.fe.contact.clock import (A_CERT, A_EXACT, A_LOOK, A_MOTION, A_WIDE, SAMPLE,
                                          T_CLOSE, T_EXACT, T_LOOK_SAMPLED, T_LOOKED,
                                          T_PAIR_TEST, T_READ, T_STEPS, T_WIDE, T_WIDE_PAIRS,
@@ -119,10 +119,11 @@ def wide_pairs(au, pos0, reach):
 
 
 @njit(cache=True)
-def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, out_e, out_f,
-                        out_s, clock, tally):
-    """The crossings of the listed ``pairs`` over the step from ``pos0`` to ``pos1`` (counted,
-    the first written to the ``out_*`` arrays), tested exactly only where the pair's
+def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, log, clock, tally,
+                        lo=0, hi=-1):
+    """The crossings of the listed ``pairs`` (those from ``lo`` to ``hi``, -1: the list's end)
+    over the step from ``pos0`` to ``pos1`` (counted, the first written to the ``log``:
+    (time, element, element, sign) arrays), tested exactly only where the pair's
     certificate cannot rule them out (fe.contact.bounds: its ``level`` less its elements'
     summed motion, then its bound at the step's start less its own relative motion; ``mo``
     the step's motion); a pair looked at gets a new level (its distance at the step's end
@@ -130,6 +131,7 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
     False: the certificates only (the contact's fail-safe tested this step already).
     ``clock``, ``tally``: the profile (fe.contact.clock's A_ and T_ slots), added to only.
     Returns the count."""
+    out_t, out_e, out_f, out_s = log
     times = np.empty(3)
     signs = np.empty(3, np.int64)
     w, cuts = np.empty((4, 3)), np.empty(4)
@@ -139,7 +141,9 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
     n = 0
     start = t0 = cycles()
     looked, sampled, close, tested, crossed = 0, 0, 0, 0, 0
-    for p in range(pairs.shape[0]):
+    if hi < 0:
+        hi = pairs.shape[0]
+    for p in range(lo, hi):
         e, f = pairs[p, 0], pairs[p, 1]
         if level[p] - cum[e] - cum[f] > sep:  # (bound_after, read only)
             continue
@@ -168,7 +172,7 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
         set_level(level, mo, p, e, f, closest_nodes(pos1, a, b, c, d)[2] - slack)
         lap(clock, A_EXACT, t1)
     lap(clock, A_CERT, start)
-    tally[T_READ] += pairs.shape[0]
+    tally[T_READ] += hi - lo
     tally[T_LOOKED] += looked
     tally[T_LOOK_SAMPLED] += sampled
     tally[T_CLOSE] += close
@@ -177,12 +181,55 @@ def certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test, out_t, o
     return n
 
 
+@njit(cache=True, parallel=True)
+def certified_blocks(pairs, elem_nodes, pos0, pos1, level, mo, test, log, clock, tally,
+                     blocks):
+    """:func:`certified_crossings` on numba's threads: the list cut into ``blocks`` runs of
+    pairs, each pair's certificate and test its own (no pair reads another's level), each run
+    logging into a log of its own; the logs are then joined in the list's order, so that the
+    count, the log and the levels are those of one thread, bit for bit, whatever the threads
+    and blocks. The profile's A_CERT holds the wall time, A_LOOK and A_EXACT the threads'
+    times summed. Returns the count."""
+    out_t, out_e, out_f, out_s = log
+    m = pairs.shape[0]
+    size = (m + blocks - 1) // blocks
+    cap = out_t.shape[0]
+    start = cycles()
+    bt = np.empty((blocks, cap), out_t.dtype)
+    be = np.empty((blocks, cap), out_e.dtype)
+    bf = np.empty((blocks, cap), out_f.dtype)
+    bs = np.empty((blocks, cap), out_s.dtype)
+    counts = np.zeros(blocks, np.int64)
+    bclock = np.zeros((blocks, clock.shape[0]), clock.dtype)
+    btally = np.zeros((blocks, tally.shape[0]), tally.dtype)
+    for c in prange(blocks):
+        lo = min(m, c * size)
+        counts[c] = certified_crossings(pairs, elem_nodes, pos0, pos1, level, mo, test,
+                                        (bt[c], be[c], bf[c], bs[c]), bclock[c], btally[c], lo,
+                                        min(m, lo + size))
+    n = 0
+    for c in range(blocks):
+        for i in range(min(counts[c], cap - n)):
+            out_t[n + i], out_e[n + i], out_f[n + i], out_s[n + i] = \
+                bt[c, i], be[c, i], bf[c, i], bs[c, i]
+        n += counts[c]
+        for j in range(tally.shape[0]):
+            tally[j] += btally[c, j]
+        clock[A_LOOK] += bclock[c, A_LOOK]
+        clock[A_EXACT] += bclock[c, A_EXACT]
+    lap(clock, A_CERT, start)
+    return n
+
+
 @njit(cache=True)
-def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
+def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False, threads=None):
     """The crossings of the step from ``au.pos0`` to ``pos`` (starting at ``t0`` [s]),
     counted and logged (``fresh``: ``au.motion`` already holds
     this step's motion; ``clean``: the contact's fail-safe tested this list on this
-    motion and found no crossing, so only the certificates are kept up). Returns True if
+    motion and found no crossing, so only the certificates are kept up; ``threads``: None,
+    one thread (numba compiles no thread kernel), else the list's pairs on that many
+    threads, fe.contact.bounds.BLOCKS_PER_THREAD blocks each, when it holds at least
+    fe.contact.bounds.THREAD_MIN_PAIRS: the same bits). Returns True if
     the list needs a rebuild (or the log a flush) before the next step."""
     mo = au.motion
     start = cycles()
@@ -206,9 +253,17 @@ def audit_step(au, pos, t0, dt, fronts, fresh=False, clean=False):
         au.tally[T_WIDE] += 1
         au.tally[T_WIDE_PAIRS] += pairs.shape[0]
     else:
-        n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo, not clean,
-                                au.log_time[k:end], au.log_a[k:end], au.log_b[k:end],
-                                au.log_sign[k:end], au.clock, au.tally)
+        n = -1
+        log = (au.log_time[k:end], au.log_a[k:end], au.log_b[k:end], au.log_sign[k:end])
+        if threads is not None:  # (pruned by numba when None)
+            if au.pairs.shape[0] >= THREAD_MIN_PAIRS:
+                n = certified_blocks(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo,
+                                     not clean, log, au.clock, au.tally,
+                                     BLOCKS_PER_THREAD * threads)
+        if n < 0:
+            n = certified_crossings(au.pairs, au.elem_nodes, au.pos0, pos, au.level, mo,
+                                    not clean, log, au.clock, au.tally, np.int64(0),
+                                    np.int64(-1))  # (not literals: one compile)
     mo.cum0[:] = mo.cum  # the sums to the next step's start
     logged = min(n, LOG_PER_STEP)
     for i in range(k, k + logged):
@@ -250,9 +305,9 @@ def touch_row(audit, contact, k):
 
 
 @njit(inline="always")
-def touch_end(audit, pos, t0, dt, fronts, fresh=False, clean=False):
+def touch_end(audit, pos, t0, dt, fronts, fresh=False, clean=False, threads=None):
     """Step end, after the contact's fail-safe (fe.step.settle; ``fresh``, ``clean`` as
     :func:`audit_step` takes them): the audit. True: stop for Python."""
     if audit is not None:
-        return audit_step(audit, pos, t0, dt, fronts, fresh, clean)
+        return audit_step(audit, pos, t0, dt, fronts, fresh, clean, threads)
     return False
