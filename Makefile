@@ -6,10 +6,12 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo demo-free test validate mutate bench clean
 
+# the install: uv (from PyPI, into the venv) unpacks and byte-compiles the wheels in
+# parallel, 18 s where pip takes 33 s on 2 cores (docs/testing.md); pip if uv cannot
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
-	$(BIN)/python -m pip install -qq --upgrade pip
-	$(BIN)/python -m pip install -qq -e '.[test]'
+	$(BIN)/python -m pip install -qq uv && $(BIN)/uv pip install -q --compile-bytecode \
+		--python $(BIN)/python -e '.[test]' || $(BIN)/python -m pip install -qq -e '.[test]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -10,8 +10,8 @@ other worker for a core and compiles the phases the loop compiles at the same mo
 cold suite logged 55 s of such compiles). tests/test_warmup.py and
 tests/test_guards_start.py switch it on where they test it.
 
-Tests marked ``fresh_compile`` (a cold compile into a numba cache of their own, 15-18 s
-each, whatever ran before) are collected first: pytest-xdist's worksteal gives each worker
+Tests marked ``fresh_compile`` (a cold compile into a numba cache of their own, about
+18 s, whatever ran before: one in make test, tests/test_warmup.py) are collected first: pytest-xdist's worksteal gives each worker
 a contiguous share of the list and the idle one steals from the other's end, so a long test
 at the end of a share leaves the other core idle (two of them ran last on one worker, the
 other idle for 26 s of a 283 s suite)."""

@@ -54,16 +54,43 @@ def fresh_env(tmp_path, **extra):
     return env
 
 
-# (two threads, a second cold compile of the demo's whole loop, in make validate: one
-# thread's run kills the phase-type mutant of tests/mutate.py as well)
+#: in a process on the numba cache a cold run of the demo (one thread) has just filled:
+#: compile the helper's phases with the types phase_jobs gives them (a load from the cache
+#: where the run's loop compiled or loaded the same types), then print each phase's
+#: compiles in the cache (its index's entries for this CPU)
+INDEX = textwrap.dedent("""
+    import sys
+    from spinweb_fe.case import load
+    from spinweb_fe.case.scene import prepare
+    from spinweb_fe.record.arms import ArmTracker
+    from spinweb_fe.run import warmup
+    from spinweb_fe.run.loop import _Chunks, choose_threads, records_vectors
+    mesh, model, control, state, dt = prepare(load(sys.argv[1], ["time.end=0.1"]))
+    threads = choose_threads(model, 1)
+    chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), 50, threads,
+                     dt, records_vectors(model, state))
+    args = chunks.loop_args(state, dt, 0)
+    for fn, sig in warmup.phase_jobs(args[0], (args[1], args[2]), state, chunks.work,
+                                     chunks.rec, chunks.threads):
+        fn.compile(sig)
+        magic = fn.targetctx.codegen().magic_tuple()
+        keys = [k for k in fn._cache._cache_file._load_index() if k[1] == magic]
+        print("PHASE", fn.py_func.__name__, len(keys))
+""")
+
+
+# (two threads, a second cold compile of the demo's whole loop, in make validate; one
+# thread's phases are checked on the cache of the cold run below, which kills the
+# phase-type mutant of tests/mutate.py)
 @pytest.mark.fresh_compile
-@pytest.mark.parametrize("threads", [1, pytest.param(2, marks=pytest.mark.slow)])
-def test_the_helpers_phases_are_the_ones_the_loop_compiles(tmp_path, threads):
+@pytest.mark.slow
+def test_the_helpers_phases_are_the_ones_the_loop_compiles_on_two_threads(tmp_path):
     """With the helper's phases compiled first (their types as phase_jobs builds them), the
-    step loop's cold compile compiles none of them again: it loads each from the cache. A
-    phase of the list whose types drifted from the loop's would be compiled twice (the
-    helper's work lost) and is named here. One and two threads (the node pass takes the
+    step loop's cold compile on two threads compiles none of them again: it loads each
+    from the cache. A phase of the list whose types drifted from the loop's would be
+    compiled twice (the helper's work lost) and is named here (the node pass takes the
     thread count)."""
+    threads = 2
     out = subprocess.run([sys.executable, "-c", MATCH, str(DEMO), str(threads)], cwd=ROOT,
                          env=fresh_env(tmp_path), capture_output=True, text=True,
                          timeout=600)
@@ -83,7 +110,12 @@ def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp
     process of its session is left (the helper stopped with the loop compiled). While the
     cold run compiles (its folder's lock there, no result yet), a second run into its
     folder exits 1 at once, without a compile, and changes nothing (issue #15: the lock is
-    taken before the compile, tests/test_folders.py for the warm cases)."""
+    taken before the compile, tests/test_folders.py for the warm cases).
+
+    Then the helper's phases, compiled with phase_jobs' types on the cold run's cache, load
+    from it: each phase holds one compile there, the loop's. A phase listed with other
+    types than the loop passes would hold two (the helper's work lost, the phase compiled
+    twice) and is named here."""
     runs = {}
     for name, on in (("helper", "1"), ("plain", "0")):
         out = tmp_path / name
@@ -110,6 +142,14 @@ def test_a_cold_run_with_the_helper_gives_the_same_result_and_leaves_nothing(tmp
     assert runs["helper"].keys() == runs["plain"].keys()
     for key, value in runs["plain"].items():
         assert np.array_equal(runs["helper"][key], value, equal_nan=True), key
+    out = subprocess.run([sys.executable, "-c", INDEX, str(DEMO)], cwd=ROOT,
+                         env=fresh_env(tmp_path), capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    phases = dict(line.split()[1:] for line in out.stdout.splitlines()
+                  if line.startswith("PHASE"))
+    assert {"axis_nodes", "release_fronts", "record_arms"} <= phases.keys()
+    twice = sorted(name for name, n in phases.items() if n != "1")
+    assert not twice, f"compiled with other types than the loop's: {twice}"
 
 
 def _second_run_is_refused(first, cmd, env, out):
