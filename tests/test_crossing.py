@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sift_pairs
 from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
+from spinweb_fe.fe.contact.distance import segment_distance
 
 DT = 4.6e-5  # the paper web's step at cfl 0.2 [s]
 
@@ -114,14 +115,19 @@ def test_against_dense_sampling_including_two_crossings_in_one_step():
     assert twice >= 3
 
 
-@pytest.mark.parametrize("with_rigid", [False, True])
-def test_broad_phase_lists_what_a_brute_force_box_test_lists(with_rigid):
+@pytest.mark.parametrize("with_rigid, lattice", [(False, False), (True, False), (True, True)])
+def test_broad_phase_lists_what_a_brute_force_box_test_lists(with_rigid, lattice):
     """The hash grid against every pair's box test; with elements marked RIGID (moving with
     the hub, in a grid of their own), no pair of two of them and every other pair as
-    before, in the same (code) order."""
+    before, in the same (code) order. ``lattice``: the nodes on a grid of quarter metres
+    and no skin, so that boxes touch each other and end on the hash grid's cell faces
+    (the cell is the longest box; a pair is taken in one cell only, the one of the larger
+    low corner: a touching pair must be found there, and once)."""
     rng = np.random.default_rng(11)
     n = 300
     pos = rng.uniform(0, 6, size=(n, 3))
+    if lattice:
+        pos = np.round(pos * 4) / 4
     elems = np.array([(i, (i + 1) % n) for i in range(0, n, 1)] +
                      [(i, int(j)) for i, j in zip(range(0, n, 3), rng.integers(0, n, n // 3))
                       if i != j])
@@ -130,7 +136,7 @@ def test_broad_phase_lists_what_a_brute_force_box_test_lists(with_rigid):
     active[::7] = 0
     if with_rigid:
         active[1::3] = RIGID
-    skin = 0.2
+    skin = 0.0 if lattice else 0.2
     listed = candidate_pairs(pos, elems, active, skin)
     codes = listed[:, 0] * len(elems) + listed[:, 1]
     assert np.all(np.diff(codes) > 0)
@@ -147,6 +153,43 @@ def test_broad_phase_lists_what_a_brute_force_box_test_lists(with_rigid):
             if np.all(lo[e] <= hi[f]) and np.all(lo[f] <= hi[e]):
                 want.add((e, f))
     assert want and got == want
+
+
+@pytest.mark.parametrize("fresh", [True, False])
+def test_the_list_sifted_leaves_out_touching_pairs_as_set_operations_do(fresh):
+    """sift_pairs (one pass, two merges) against the same rule by numpy's set operations:
+    a pair entering the list closer than ``touch`` is left out, a pair left out before stays
+    out while within ``keep``; the kept pairs, their codes and distances (the segments'
+    least distance: segment_distance's, within a dense sampling's step of it) and the codes
+    left out."""
+    rng = np.random.default_rng(5)
+    n = 80
+    pos = rng.uniform(0, 3, size=(n, 3))
+    elems = np.array([(i, i + 1) for i in range(n - 1)])
+    m = len(elems)
+    pairs = candidate_pairs(pos, elems, np.ones(m, np.int8), 0.3)
+    code = pairs[:, 0] * m + pairs[:, 1]
+    old = np.zeros(0, np.int64) if fresh else np.sort(rng.choice(code, len(code) // 2,
+                                                                  replace=False))
+    ignored = np.sort(rng.choice(code, len(code) // 4, replace=False))
+    keep, touch = 0.3, 0.25
+    codes, kept, kept_codes, kept_dist, left = sift_pairs(pairs, elems, pos, old, fresh,
+                                                          ignored, keep, touch)
+    ends = pos[elems[pairs]]  # (P, 2 elements, 2 ends, 3)
+    dist = np.array([segment_distance(*q[0], *q[1]) for q in ends])
+    s = np.linspace(0.0, 1.0, 41)[None, :, None]
+    pa = ends[:, 0, :1] + s * (ends[:, 0, 1:] - ends[:, 0, :1])  # (P, 41, 3)
+    pb = ends[:, 1, :1] + s * (ends[:, 1, 1:] - ends[:, 1, :1])
+    dense = np.linalg.norm(pa[:, :, None] - pb[:, None, :], axis=3).min(axis=(1, 2))
+    assert np.all(dist <= dense + 1e-12) and np.all(dist >= dense - 3.0 * 3 ** 0.5 / 40)
+    entering = np.ones(len(code), bool) if fresh else ~np.isin(code, old)
+    want_left = np.union1d(np.intersect1d(ignored, code[dist <= keep]),
+                           code[entering & (dist <= touch)])
+    assert np.array_equal(codes, code)
+    assert 0 < len(left) < len(code) and np.array_equal(left, want_left)
+    out = np.isin(code, left)
+    assert np.array_equal(kept, pairs[~out]) and np.array_equal(kept_codes, code[~out])
+    assert np.array_equal(kept_dist, dist[~out])
 
 
 def test_step_crossings_of_a_net_falling_through_a_line():

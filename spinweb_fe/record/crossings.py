@@ -35,8 +35,7 @@ import math
 import numpy as np
 
 from spinweb_fe.fe.contact.bounds import ROUND, no_motion
-from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sorted_in
-from spinweb_fe.fe.contact.distance import pair_distances
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sift_pairs
 from spinweb_fe.fe.layout import AUDIT, named
 from spinweb_fe.fe.contact.touch import REBUILD, AuditKernel, audit_step
 from spinweb_fe.fe.contact.clock import AUDIT_CLOCK, AUDIT_TALLY
@@ -129,9 +128,6 @@ class CrossingAudit(Feature):
         #: what the audit's passes cost (record.profile; over the rebuilds, not checkpointed)
         self.profile = Profile(AUDIT_CLOCK, AUDIT_TALLY)
 
-    def _code(self, pairs):
-        return pairs[:, 0] * np.int64(len(self.elem_nodes)) + pairs[:, 1]
-
     def build(self, state, rows: int | None = None):
         """The candidate list at the state's positions (and the pairs left out), and the
         step loop's view of it (:attr:`kernel_data`, with room for ``rows`` history rows a
@@ -142,20 +138,13 @@ class CrossingAudit(Feature):
         rigid = bound[self.elem_nodes[:, 0]] & bound[self.elem_nodes[:, 1]]
         active = np.where(rigid, RIGID, 1).astype(np.int8)
         pairs = candidate_pairs(pos, self.elem_nodes, active, self.skin)
-        dist = pair_distances(pairs, self.elem_nodes, pos)
-        code = self._code(pairs)
         # a pair that enters the list touching is left out; one left out stays out until
         # it is a skin apart (stacked layers drift and part slowly)
         # (codes ascend: the broad phase lists pairs in code order; merges, not hashes)
-        entering = ~sorted_in(code, self._codes) if self._codes is not None else \
-            np.ones(len(code), bool)
-        staying = self.ignored[sorted_in(self.ignored, code[dist <= self.base_skin])]
-        new = code[entering & (dist <= self.touch)]
-        self.ignored = np.union1d(staying, new) if len(new) else staying
-        self._codes = code
-        kept = ~sorted_in(code, self.ignored)
-        self.pairs = pairs[kept]
-        self.pair_codes, self.pair_dist = code[kept], dist[kept]
+        fresh = self._codes is None
+        self._codes, self.pairs, self.pair_codes, self.pair_dist, self.ignored = sift_pairs(
+            pairs, self.elem_nodes, pos, np.zeros(0, np.int64) if fresh else self._codes,
+            fresh, self.ignored, self.base_skin, self.touch)
         theta = float(self.frame_angle[0])
         c, s = math.cos(theta), math.sin(theta)
         ref = np.column_stack([c * pos[:, 0] + s * pos[:, 1],

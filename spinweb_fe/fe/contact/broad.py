@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from spinweb_fe.fe.contact.distance import closest_nodes
+
 #: grid cells per axis of the hash grid's keys (2^21: three fit an int64)
 GRID_SPAN = 2097152
 
@@ -56,25 +58,90 @@ def grid_entries(lo, hi, active, cell, origin, count, rigid=False):
 
 
 @njit(cache=True)
-def _cell_partners(e, lo, hi, elem_nodes, skeys, sowners, cell, origin, seen, row, n_row):
-    """Element e's partners of higher index (boxes overlapping, no common node, each once:
-    ``seen``) among the grid's entries (``skeys`` sorted, ``sowners``) of the cells e's box
-    touches, appended to ``row`` from ``n_row``; returns the new count."""
+def _cells(lo, hi, cell, origin):
+    """(m, 6) int64: the first and last index per axis (i0, j0, k0, i1, j1, k1) of the grid
+    cells box e (rows of ``lo``, ``hi``) touches."""
+    span = np.empty((lo.shape[0], 6), np.int64)
+    for e in range(lo.shape[0]):
+        for k in range(3):
+            span[e, k] = np.int64((lo[e, k] - origin[k]) / cell)
+            span[e, 3 + k] = np.int64((hi[e, k] - origin[k]) / cell)
+    return span
+
+
+@njit(cache=True)
+def _grid(span, active, rigid):
+    """The grid of the ``active`` boxes (with ``rigid`` those marked :data:`RIGID`, else the
+    others) over their cells ``span``: (keys, start, owners), the occupied cells' keys
+    ascending, cell u's boxes owners[start[u]:start[u + 1]], ascending within a cell (a
+    stable sort of the entries, made in the boxes' order)."""
     big = np.int64(GRID_SPAN)
-    n_ent = skeys.shape[0]
+    m = span.shape[0]
+    n = 0
+    for e in range(m):
+        if active[e] and (active[e] == RIGID) == rigid:
+            n += ((span[e, 3] - span[e, 0] + 1) * (span[e, 4] - span[e, 1] + 1)
+                  * (span[e, 5] - span[e, 2] + 1))
+    keys = np.empty(n, np.int64)
+    owners = np.empty(n, np.int64)
+    n = 0
+    for e in range(m):
+        if not active[e] or (active[e] == RIGID) != rigid:
+            continue
+        for i in range(span[e, 0], span[e, 3] + 1):
+            for j in range(span[e, 1], span[e, 4] + 1):
+                for k in range(span[e, 2], span[e, 5] + 1):
+                    keys[n] = (i * big + j) * big + k
+                    owners[n] = e
+                    n += 1
+    order = np.argsort(keys, kind="mergesort")
+    keys, owners = keys[order], owners[order]
+    cells = 0
+    for q in range(n):
+        cells += q == 0 or keys[q] != keys[q - 1]
+    cell_keys = np.empty(cells, np.int64)
+    start = np.empty(cells + 1, np.int64)
+    u = 0
+    for q in range(n):
+        if q == 0 or keys[q] != keys[q - 1]:
+            cell_keys[u] = keys[q]
+            start[u] = q
+            u += 1
+    start[cells] = n
+    return cell_keys, start, owners
+
+
+@njit(cache=True)
+def _partners(e, lo, hi, span, elem_nodes, grid, row, n_row, runs, n_runs):
+    """Element e's partners of higher index in ``grid`` (:func:`_grid`): boxes overlapping,
+    no common node, each found once, in the pair's own cell (the one holding the larger of
+    the two boxes' low corners, which both boxes touch when they overlap). Appended to
+    ``row`` from ``n_row``, one ascending run per cell, each run's start to ``runs`` from
+    ``n_runs``; returns the new (n_row, n_runs)."""
+    cell_keys, start, owners = grid
+    big = np.int64(GRID_SPAN)
     ea, eb = elem_nodes[e, 0], elem_nodes[e, 1]
-    i0, j0, k0, i1, j1, k1 = _cell_span(lo, hi, e, cell, origin)
-    for i in range(i0, i1 + 1):
-        for j in range(j0, j1 + 1):
-            for k in range(k0, k1 + 1):
+    for i in range(span[e, 0], span[e, 3] + 1):
+        for j in range(span[e, 1], span[e, 4] + 1):
+            for k in range(span[e, 2], span[e, 5] + 1):
                 key = (i * big + j) * big + k
-                q = np.searchsorted(skeys, key)
-                while q < n_ent and skeys[q] == key:
-                    f = sowners[q]
-                    q += 1
-                    if f <= e or seen[f] == e:
-                        continue
-                    seen[f] = e
+                u = np.searchsorted(cell_keys, key)
+                if u == cell_keys.shape[0] or cell_keys[u] != key:
+                    continue
+                q, q1 = start[u], start[u + 1]
+                while q < q1:  # the cell's first box above e (its boxes ascend)
+                    mid = (q + q1) >> 1
+                    if owners[mid] <= e:
+                        q = mid + 1
+                    else:
+                        q1 = mid
+                runs[n_runs] = n_row
+                n_runs += 1
+                for q in range(q, start[u + 1]):
+                    f = owners[q]
+                    if (max(span[e, 0], span[f, 0]) != i or max(span[e, 1], span[f, 1]) != j
+                            or max(span[e, 2], span[f, 2]) != k):
+                        continue  # the pair's own cell is another
                     fa, fb = elem_nodes[f, 0], elem_nodes[f, 1]
                     if ea == fa or ea == fb or eb == fa or eb == fb:
                         continue
@@ -84,7 +151,7 @@ def _cell_partners(e, lo, hi, elem_nodes, skeys, sowners, cell, origin, seen, ro
                         continue
                     row[n_row] = f
                     n_row += 1
-    return n_row
+    return n_row, n_runs
 
 
 @njit(cache=True)
@@ -94,7 +161,7 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     a uniform hash grid. Elements that move with the hub go into a grid of their own, which
     only the others search: two of them cannot cross while held, and a dense held coil
     would otherwise cost the broad phase its own pairs (on the paper's coiled web most of
-    the rebuild's time)."""
+    the rebuild's time). The list comes out sorted by code e * m + f."""
     m = elem_nodes.shape[0]
     lo = np.empty((m, 3))
     hi = np.empty((m, 3))
@@ -112,39 +179,86 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     for e in range(m):
         for k in range(3):
             origin[k] = min(origin[k], lo[e, k])
-    # every element into each cell its box touches (at most 2 per axis: the cell is at
-    # least the box's size), as (cell key, element) entries sorted by key: the free
-    # elements' grid and the rigid ones'
-    keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m)
-    order = np.argsort(keys[:n_ent])
-    free_keys, free_owners = keys[order], owners[order]
-    keys, owners, n_ent = grid_entries(lo, hi, active, cell, origin, 8 * m, True)
-    order = np.argsort(keys[:n_ent])
-    rigid_keys, rigid_owners = keys[order], owners[order]
-    # then each element's partners of higher index from the cells it touches, in
-    # ascending order: the list comes out sorted by code e * m + f
-    seen = np.full(m, -1, np.int64)
+    # the cells each box touches (at most 2 per axis: the cell is at least the box's size,
+    # 3 where the division rounds up), the free elements' grid and the rigid ones'
+    span = _cells(lo, hi, cell, origin)
+    free, rigid = _grid(span, active, False), _grid(span, active, True)
+    # each element's partners of higher index, a run per cell, merged into ascending order:
+    # the list comes out sorted by code e * m + f
     row = np.empty(m, np.int64)
+    runs = np.empty(2 * 27 + 1, np.int64)
+    head = np.empty(2 * 27, np.int64)
     out = np.empty((max(16, 8 * m), 2), np.int64)
     n_out = 0
     for e in range(m):
         if not active[e]:
             continue
-        n_row = _cell_partners(e, lo, hi, elem_nodes, free_keys, free_owners, cell, origin,
-                               seen, row, 0)
+        n_row, n_runs = _partners(e, lo, hi, span, elem_nodes, free, row, 0, runs, 0)
         if active[e] != RIGID:
-            n_row = _cell_partners(e, lo, hi, elem_nodes, rigid_keys, rigid_owners, cell,
-                                   origin, seen, row, n_row)
+            n_row, n_runs = _partners(e, lo, hi, span, elem_nodes, rigid, row, n_row, runs,
+                                      n_runs)
         if n_out + n_row > out.shape[0]:
             grown = np.empty((2 * (n_out + n_row), 2), np.int64)
             grown[:n_out] = out[:n_out]
             out = grown
-        part = np.sort(row[:n_row])
-        for r in range(n_row):
+        runs[n_runs] = n_row
+        for r in range(n_runs):
+            head[r] = runs[r]
+        for _ in range(n_row):  # the least head of the runs, n_row times
+            best, low = -1, np.int64(0)
+            for r in range(n_runs):
+                if head[r] < runs[r + 1] and (best < 0 or row[head[r]] < low):
+                    best, low = r, row[head[r]]
+            head[best] += 1
             out[n_out, 0] = e
-            out[n_out, 1] = part[r]
+            out[n_out, 1] = low
             n_out += 1
     return out[:n_out].copy()
+
+
+@njit(cache=True)
+def sift_pairs(pairs, elem_nodes, pos, old_codes, fresh, ignored, keep, touch):
+    """The broad phase's list (``pairs``, sorted by code e * m + f) sifted for the audit and
+    the contact: a pair that enters the list (its code not in the ascending ``old_codes``,
+    every pair when ``fresh``) closer than ``touch`` [m] at ``pos`` is left out, and a pair
+    left out before (its code in the ascending ``ignored``) stays out while it is within
+    ``keep`` [m]. Returns (codes of every pair, the pairs kept, their codes, their
+    distances [m] at ``pos``, the codes left out): one pass, with two merges."""
+    n = pairs.shape[0]
+    m = np.int64(elem_nodes.shape[0])
+    codes = np.empty(n, np.int64)
+    dist = np.empty(n)
+    out = np.empty(n, np.bool_)
+    i_old = i_ign = 0
+    left = 0
+    for p in range(n):
+        e, f = pairs[p, 0], pairs[p, 1]
+        code = e * m + f
+        codes[p] = code
+        dist[p] = closest_nodes(pos, elem_nodes[e, 0], elem_nodes[e, 1], elem_nodes[f, 0],
+                                elem_nodes[f, 1])[2]
+        while i_old < old_codes.shape[0] and old_codes[i_old] < code:
+            i_old += 1
+        entering = fresh or not (i_old < old_codes.shape[0] and old_codes[i_old] == code)
+        while i_ign < ignored.shape[0] and ignored[i_ign] < code:
+            i_ign += 1
+        was_out = i_ign < ignored.shape[0] and ignored[i_ign] == code
+        out[p] = (was_out and dist[p] <= keep) or (entering and dist[p] <= touch)
+        left += out[p]
+    kept = np.empty((n - left, 2), np.int64)
+    kept_codes = np.empty(n - left, np.int64)
+    kept_dist = np.empty(n - left)
+    left_out = np.empty(left, np.int64)
+    j = k = 0
+    for p in range(n):
+        if out[p]:
+            left_out[k] = codes[p]
+            k += 1
+        else:
+            kept[j, 0], kept[j, 1] = pairs[p, 0], pairs[p, 1]
+            kept_codes[j], kept_dist[j] = codes[p], dist[p]
+            j += 1
+    return codes, kept, kept_codes, kept_dist, left_out
 
 
 @njit(cache=True)
@@ -167,19 +281,6 @@ def boxes_apart(box, e, f, gap):
     return (box[e, 2] - gap > box[f, 5] or box[f, 2] - gap > box[e, 5]
             or box[e, 0] - gap > box[f, 3] or box[f, 0] - gap > box[e, 3]
             or box[e, 1] - gap > box[f, 4] or box[f, 1] - gap > box[e, 4])
-
-
-@njit(cache=True)
-def sorted_in(a, b):
-    """(len(a),) bool: which entries of the ascending ``a`` occur in the ascending ``b``
-    (a merge: O(len(a) + len(b)))."""
-    out = np.zeros(a.shape[0], np.bool_)
-    j = 0
-    for i in range(a.shape[0]):
-        while j < b.shape[0] and b[j] < a[i]:
-            j += 1
-        out[i] = j < b.shape[0] and b[j] == a[i]
-    return out
 
 
 @njit(cache=True)

@@ -61,14 +61,3 @@ def closest_nodes(pos, a, b, c, d):
 def segment_distance(p, q, r, s):
     """The least distance [m] between the segments pq and rs."""
     return closest_points(p, q, r, s)[2]
-
-
-@njit(cache=True)
-def pair_distances(pairs, elem_nodes, pos):
-    """(P,) the least distance [m] of each element pair at ``pos``."""
-    out = np.empty(pairs.shape[0])
-    for p in range(pairs.shape[0]):
-        e, f = pairs[p, 0], pairs[p, 1]
-        out[p] = closest_nodes(pos, elem_nodes[e, 0], elem_nodes[e, 1], elem_nodes[f, 0],
-                               elem_nodes[f, 1])[2]
-    return out
