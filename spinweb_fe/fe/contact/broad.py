@@ -181,8 +181,10 @@ def candidate_pairs(pos, elem_nodes, active, skin):
             origin[k] = min(origin[k], lo[e, k])
     # the cells each box touches (at most 2 per axis: the cell is at least the box's size,
     # 3 where the division rounds up), the free elements' grid and the rigid ones'
+    # (typed flags and counts: a literal would compile a callee once per value)
     span = _cells(lo, hi, cell, origin)
-    free, rigid = _grid(span, active, False), _grid(span, active, True)
+    free, rigid = _grid(span, active, np.bool_(False)), _grid(span, active, np.bool_(True))
+    zero = np.int64(0)
     # each element's partners of higher index, a run per cell, merged into ascending order:
     # the list comes out sorted by code e * m + f
     row = np.empty(m, np.int64)
@@ -193,7 +195,7 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     for e in range(m):
         if not active[e]:
             continue
-        n_row, n_runs = _partners(e, lo, hi, span, elem_nodes, free, row, 0, runs, 0)
+        n_row, n_runs = _partners(e, lo, hi, span, elem_nodes, free, row, zero, runs, zero)
         if active[e] != RIGID:
             n_row, n_runs = _partners(e, lo, hi, span, elem_nodes, rigid, row, n_row, runs,
                                       n_runs)
