@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, sift_pairs
+from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, carried, sift_pairs
 from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
 from spinweb_fe.fe.contact.distance import segment_distance
 
@@ -190,6 +190,23 @@ def test_the_list_sifted_leaves_out_touching_pairs_as_set_operations_do(fresh):
     out = np.isin(code, left)
     assert np.array_equal(kept, pairs[~out]) and np.array_equal(kept_codes, code[~out])
     assert np.array_equal(kept_dist, dist[~out])
+
+
+def test_a_new_list_carries_what_its_pairs_had_in_the_old():
+    """carried (a merge of two ascending code lists) against numpy's searchsorted: a code
+    in both lists takes its old value, a new one its fresh value; an empty old list keeps
+    the fresh values."""
+    rng = np.random.default_rng(3)
+    codes = np.sort(rng.choice(10_000, 600, replace=False))
+    old_codes = np.sort(np.concatenate([rng.choice(codes, 300, replace=False),
+                                        rng.choice(np.setdiff1d(np.arange(10_000), codes),
+                                                   100, replace=False)]))
+    fresh, old = rng.uniform(0, 1, len(codes)), rng.uniform(2, 3, len(old_codes))
+    got = carried(codes, fresh, old_codes, old)
+    i = np.minimum(np.searchsorted(old_codes, codes), len(old_codes) - 1)
+    same = old_codes[i] == codes
+    assert same.sum() == 300 and np.array_equal(got, np.where(same, old[i], fresh))
+    assert np.array_equal(carried(codes, fresh, np.zeros(0, np.int64), np.zeros(0)), fresh)
 
 
 def test_step_crossings_of_a_net_falling_through_a_line():

@@ -14,6 +14,7 @@ import numpy as np
 from spinweb_fe.fe.contact.penalty import (AGAIN, DEEPEST_RUN, ENERGY, FRICTION, IMPULSES, KAPPA,
                                          LEFT, MARGIN, ROUNDS, TAKEN, ContactKernel)
 from spinweb_fe.fe.contact.bounds import Certified, contact_profile
+from spinweb_fe.fe.contact.broad import carried
 from spinweb_fe.fe.contact.clock import CONTACT_CLOCK, CONTACT_TALLY
 from spinweb_fe.fe.contact.impulses import hub_start
 from spinweb_fe.fe.contact.zones import no_adjacency
@@ -80,12 +81,7 @@ class CableContact(Feature):
         [m]): a pair that was listed keeps its contact distance, a new one gets twice the
         radius or, if closer, its distance now (an overlap at entry is kept, not pushed
         apart: stacked layers closer than the radius stay as they are until they part)."""
-        reach = np.minimum(2.0 * self.radius, dist)
-        if len(self.codes):
-            i = np.searchsorted(self.codes, codes)
-            i = np.minimum(i, len(self.codes) - 1)
-            same = self.codes[i] == codes
-            reach[same] = self.reach[i[same]]
+        reach = carried(codes, np.minimum(2.0 * self.radius, dist), self.codes, self.reach)
         self.codes, self.reach = codes, reach
 
     def on_list(self, audit, rows: int, codes=None, dist=None):

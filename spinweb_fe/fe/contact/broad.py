@@ -264,6 +264,21 @@ def sift_pairs(pairs, elem_nodes, pos, old_codes, fresh, ignored, keep, touch):
 
 
 @njit(cache=True)
+def carried(codes, fresh, old_codes, old):
+    """(len(codes),) float: for each of the ascending ``codes``, its value in ``old`` (by
+    the ascending ``old_codes``) where it was listed, else its value in ``fresh`` (a merge:
+    a new list keeps what the pairs it shares with the one before had)."""
+    out = fresh.copy()
+    j = 0
+    for i in range(codes.shape[0]):
+        while j < old_codes.shape[0] and old_codes[j] < codes[i]:
+            j += 1
+        if j < old_codes.shape[0] and old_codes[j] == codes[i]:
+            out[i] = old[j]
+    return out
+
+
+@njit(cache=True)
 def swept_boxes(elem_nodes, active, pos0, pos1, box):
     """Into row e of ``box`` (m, 6) the box [lo x y z, hi x y z] [m] that ``active``
     element e sweeps while its nodes move from ``pos0`` to ``pos1`` (other rows stay)."""
