@@ -3,9 +3,12 @@
 Every element's box, widened by ``skin`` on each side, goes into a uniform hash grid (cells
 of the longest element plus twice the skin, sorted by cell: O(n log n)); the pairs of
 elements without a common node whose widened boxes overlap are the candidates
-(:func:`candidate_pairs`). A pair left out was more than twice the skin apart, so the list
+(:func:`candidate_pairs`; each pair is taken in one cell, the one of the larger of its
+boxes' low corners, and each element's partners come out in order by merging a run per
+cell). A pair left out was more than twice the skin apart, so the list
 holds every pair that can meet while no node has moved more than the skin from where it was
-at the build (two elements then close by at most twice the skin). Each step, the boxes the
+at the build (two elements then close by at most twice the skin). :func:`sift_pairs` then
+leaves out the pairs that enter the list touching. Each step, the boxes the
 elements swept (:func:`swept_boxes`) rule out most listed pairs before the exact test
 (fe.contact.crossing).
 """
