@@ -24,6 +24,13 @@ from spinweb_fe.record.profile import Profile
 
 log = logging.getLogger(__name__)
 
+#: the contact's skin, as a share of the audit's default (record.crossings.default_skin):
+#: its passes read every listed pair each step, and since the rebuilds cost half as much a
+#: thinner list built twice as often is cheaper (the feedback web's first 0.6 s: 34.5 s at
+#: 0.2 m, 36.9 s at 0.3 m, 47.2 s at 0.5 m; the tilted free hub's first second 46.1 s at
+#: 0.25 m, 55.8 s at 0.5 m; the same impulses; docs/performance.md)
+CONTACT_SKIN = 0.5
+
 
 def cable_radius(case, model) -> float:
     """The contact radius of a case [m]: contact.cable_radius, else the cable's own
@@ -63,6 +70,8 @@ class CableContact(Feature):
         self.audit = audit
         if audit is not None:  # a fixed skin: the contact pays per listed pair (issue #42)
             audit.growth = 1.0
+            if not audit.skin_given:  # and a thinner one than the audit's, unless set
+                audit.skin = audit.base_skin = CONTACT_SKIN * audit.skin
         self.radius, self.kappa, self.mu = float(radius), float(kappa), float(friction)
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.force = np.zeros((model.n_nodes, 3))

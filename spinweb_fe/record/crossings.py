@@ -110,6 +110,7 @@ class CrossingAudit(Feature):
         self.elem_nodes = np.array(model.elements.nodes, dtype=np.int64)  # (writable: one type)
         self.skin = float(skin) if skin is not None else default_skin(model)
         self.base_skin = self.skin  # the skin adapts to the web's speed (:meth:`adapt`)
+        self.skin_given = skin is not None  # (the case's, which the contact keeps)
         #: the widest skin, per starting skin (1: fixed; the contact fixes it: its passes
         #: cost 60-110 ns a listed pair, so a longer list costs it more than the rebuilds)
         self.growth = SKIN_GROWTH
