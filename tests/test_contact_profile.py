@@ -178,3 +178,26 @@ def test_plain_step_compiles_none_of_it():
         found.append("llvm.readcyclecounter" in fresh.inspect_llvm(sig))
     assert found == [False, True]
 
+
+
+@pytest.mark.parametrize("skin", [None, 0.4])
+def test_the_contact_lists_pairs_within_half_the_audits_skin_unless_a_skin_is_set(skin):
+    """With the contact the audit's list keeps a fixed skin, by default half the audit's own
+    (record.contact.CONTACT_SKIN: its passes read the whole list each step); a skin the case
+    sets is kept as it is, fixed too. The audit alone keeps its default and adapts it."""
+    from spinweb_fe.record.contact import CONTACT_SKIN
+    from spinweb_fe.record.crossings import default_skin
+
+    extra = [] if skin is None else [f"audit.skin={skin}"]
+    found = {}
+    for mode in ("audit", "contact"):
+        case = case_mod.load(CASE, [*KEYS, *MODES[mode], *extra])
+        scene = prepare(case)
+        audit = {f.name: f for f in features_of(scene.model, scene.state, case)}["crossings"]
+        found[mode] = (audit.skin, audit.base_skin, audit.growth)
+    default = default_skin(scene.model)
+    assert default == pytest.approx(0.5)  # the paper's 2.5 m elements
+    want = default if skin is None else skin
+    assert found["audit"][:2] == (want, want) and found["audit"][2] > 1.0
+    want = CONTACT_SKIN * default if skin is None else skin
+    assert found["contact"] == (want, want, 1.0)
