@@ -19,6 +19,7 @@ from spinweb_fe.case.load import load as load_case
 from spinweb_fe.cli import main
 from spinweb_fe.record import verdict
 from spinweb_fe.sweep import chart as ch
+from spinweb_fe.sweep import cluster
 from spinweb_fe.sweep import design as ds
 from spinweb_fe.sweep import outputs
 from spinweb_fe.sweep import verify as vf
@@ -122,10 +123,15 @@ def test_two_keys_by_differential_evolution(tmp_path):
     assert best.values["tethers.length"] > 5.5 and best.objective < 5.74e5
 
 
-def test_no_design_is_one_line_and_exit_1(tmp_path, capsys):
+def test_no_design_is_one_line_and_exit_1(tmp_path, capsys, monkeypatch):
+    def refuse(*_):  # the search's small batches run here: no cluster starts
+        raise AssertionError("a cluster was started")
+    monkeypatch.setattr(cluster, "_start", refuse)
     path = write(tmp_path, SMALL.replace("peak_torque = 2e6", "peak_torque = 1e3"))
     assert main(["design", str(path), "-o", str(tmp_path / "out"), "--no-fe"]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    captured = capsys.readouterr()
+    assert "s in this process" in captured.out
+    err = captured.err.strip().splitlines()
     assert len(err) == 1 and "no design" in err[0] and "Traceback" not in err[0]
     assert "peak_torque" in err[0] or "recoil" in err[0]
     assert (tmp_path / "out" / "design.json").is_file()

@@ -13,7 +13,7 @@ import pytest
 
 from spinweb_fe.cli import main
 from spinweb_fe.errors import InputError
-from spinweb_fe.sweep import draws
+from spinweb_fe.sweep import cluster, draws
 from spinweb_fe.sweep import run as sw
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,10 +134,15 @@ def test_random_needs_members_and_members_needs_random(tmp_path):
                                                               "values": [1]}}})
 
 
-def test_monte_carlo_sweep_reports_the_pass_rate_and_reruns_the_worst(tmp_path, capsys):
-    """12 members of the analytical model on one worker: the printed pass rate is the
-    members' own verdicts, the interval Wilson's, and the worst member named runs alone
-    with the same draws and the same result."""
+def test_monte_carlo_sweep_reports_the_pass_rate_and_reruns_the_worst(tmp_path, capsys,
+                                                                     monkeypatch):
+    """12 members of the analytical model, in this process (a batch too small for a
+    cluster's start: none starts): the printed pass rate is the members' own verdicts, the
+    interval Wilson's, and the worst member named runs alone with the same draws and the
+    same result."""
+    def refuse(*_):
+        raise AssertionError("a cluster was started")
+    monkeypatch.setattr(cluster, "_start", refuse)
     path = sweep_file(tmp_path, 12)
     out = tmp_path / "out"
     assert main(["sweep", str(path), "-o", str(out), "--workers", "1", "--no-progress"]) == 0

@@ -116,7 +116,7 @@ def _design(args, d, out, ds, outputs, vf, Stage, enabled) -> int:
         timing["search"] = time.perf_counter() - t0
         ran.append(f"analytic search {len(points)} solves of the consistent model ("
                    + ", ".join(f"{k} {v}" for k, v in ev.counts.items())
-                   + f") in {timing['search']:.1f} s on {_where(args)}")
+                   + f") in {timing['search']:.1f} s {_where(args, client)}")
         cands = vf.candidates(d, points)
         info = {"timing_s": timing, "stages": ran}
         if not cands:
@@ -186,8 +186,11 @@ def _design(args, d, out, ds, outputs, vf, Stage, enabled) -> int:
     return 0
 
 
-def _where(args) -> str:
-    return args.scheduler or f"{args.workers} local worker(s)"
+def _where(args, client) -> str:
+    """Where the analytical search ran: the cluster only if a batch was worth it."""
+    if not client.started:
+        return "in this process"
+    return f"on {args.scheduler or f'{args.workers} local worker(s)'}"
 
 
 def _chart(args, out, check_writable) -> int:

@@ -75,35 +75,80 @@ def _quiet_dask():
             logging.getLogger(n).setLevel(level)
 
 
-@contextlib.contextmanager
-def dask_client(scheduler=None, workers=2):
-    """A Dask client (the sweep's and the design's): a running scheduler's, or a
-    LocalCluster of ``workers`` processes with one thread each; Dask's log lines silenced;
-    client and cluster closed at the end. RunError if the cluster cannot be started or
-    reached."""
+#: a batch of analytical solves (about 35 ms each) worth a local cluster's start (about
+#: 2 s, and each worker's imports): smaller batches, and every batch before the cluster
+#: has started, run in this process (docs/sweep.md, "Where the work runs")
+PARALLEL_MIN = 64
+
+
+class LazyClient:
+    """A Dask client that starts its cluster at the first task sent to it (``submit``,
+    ``map``): a design whose analytical search runs in this process and that ends there
+    (``--no-fe``, no design) starts none. With ``scheduler`` (a running cluster's address)
+    every parallel batch goes there. :meth:`worth` tells a caller whether a batch of ``n``
+    analytical solves should go to the cluster."""
+
+    def __init__(self, scheduler=None, workers=2):
+        self.scheduler, self.workers = scheduler, workers
+        self._client = self._cluster = None
+
+    @property
+    def started(self) -> bool:
+        return self._client is not None
+
+    def worth(self, n: int) -> bool:
+        return n > 1 and (self.started or bool(self.scheduler) or n >= PARALLEL_MIN)
+
+    def client(self):
+        """The started client (the cluster started now if not yet). RunError if it cannot
+        be started or reached."""
+        if self._client is None:
+            self._client, self._cluster = _start(self.scheduler, self.workers)
+        return self._client
+
+    def submit(self, *args, **kwargs):
+        return self.client().submit(*args, **kwargs)
+
+    def map(self, *args, **kwargs):
+        return self.client().map(*args, **kwargs)
+
+    def close(self):
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._client = self._cluster = None
+
+
+def _start(scheduler, workers):
     from dask.distributed import Client, LocalCluster
 
+    cluster = None
+    try:
+        if scheduler:
+            return Client(scheduler, timeout="10s"), None
+        # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.WARNING)
+        return Client(cluster), cluster
+    except (OSError, TimeoutError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise RunError(f"cannot start or reach the Dask cluster "
+                       f"{scheduler or '(local)'}: {exc}") from None
+
+
+@contextlib.contextmanager
+def dask_client(scheduler=None, workers=2):
+    """The sweep's and the design's client (:class:`LazyClient`): a running scheduler's,
+    or a LocalCluster of ``workers`` processes with one thread each, started at its first
+    task; Dask's log lines silenced; client and cluster closed at the end."""
     with _quiet_dask():
-        cluster = None
+        lazy = LazyClient(scheduler, workers)
         try:
-            if scheduler:
-                client = Client(scheduler, timeout="10s")
-            else:  # ":0": a free port for the scheduler's HTTP server (no clash on 8787)
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                       processes=True, dashboard_address=":0",
-                                       silence_logs=logging.WARNING)
-                client = Client(cluster)
-        except (OSError, TimeoutError) as exc:
-            if cluster is not None:
-                cluster.close()
-            raise RunError(f"cannot start or reach the Dask cluster "
-                           f"{scheduler or '(local)'}: {exc}") from None
-        try:
-            yield client
+            yield lazy
         finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            lazy.close()
 
 
 def _execute(sweep, out_dir, client, scheduler, workers, progress):
@@ -116,6 +161,8 @@ def _execute(sweep, out_dir, client, scheduler, workers, progress):
         run = sweep.runs[0]
         warm(client, {"raw": run.raw, "source": str(sweep.base), "mode": "fe",
                       "model": sweep.model}, out_dir / "runs" / "_compile")
+    if sweep.mode != "fe" and not client.worth(len(sweep.runs)):
+        return _in_process(sweep, out_dir, rows, progress)
     futures = {}
     for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
         task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
@@ -138,3 +185,20 @@ def _execute(sweep, out_dir, client, scheduler, workers, progress):
                          rows[i]["status"], rows[i].get("wall_time_s", math.nan))
     return rows
 
+
+
+def _in_process(sweep, out_dir, rows, progress):
+    """A small analytical sweep in this process, one run after another (each a fraction of
+    a second: less than a cluster's start)."""
+    from spinweb_fe.run.progress import Stage, enabled
+
+    bar = enabled(progress)
+    with Stage(f"{sweep.mode} runs", len(rows), show=bar) as stage:
+        for i, run in enumerate(sweep.runs):
+            rows[i] = run_one({"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
+                               "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)})
+            stage.update(note=f"{run.name}: {rows[i]['status'][:30]}")
+            if progress and not bar:
+                log.info("[%d/%d] %s: %s (%.1f s)", i + 1, len(rows), run.name,
+                         rows[i]["status"], rows[i].get("wall_time_s", math.nan))
+    return rows

@@ -167,7 +167,7 @@ class Evaluator:
         """The points of ``batch`` (a list of value dicts), the new ones solved at once."""
         keys = [self._key(v) for v in batch]
         new = list({k: v for k, v in zip(keys, batch) if k not in self._seen}.items())
-        if new and self.client is not None and len(new) > 1:
+        if new and self.client is not None and _worth(self.client, len(new)):
             futs = self.client.map(evaluate, [self.d] * len(new), [v for _, v in new],
                                    [self.extra] * len(new), pure=False)
             for (k, _), fut in zip(new, futs):
@@ -176,6 +176,13 @@ class Evaluator:
             for k, v in new:
                 self._add(k, evaluate(self.d, v, self.extra))
         return [self._seen[k] for k in keys]
+
+
+def _worth(client, n: int) -> bool:
+    """Whether ``n`` solves go to the client's workers (sweep.cluster.LazyClient.worth: a
+    batch too small to pay a cluster's start runs here); a plain Dask client: any batch."""
+    worth = getattr(client, "worth", None)
+    return worth(n) if worth is not None else n > 1
 
 
 # -- the search ---------------------------------------------------------------------------
