@@ -66,37 +66,23 @@ def _cells(lo, hi, cell, origin):
     cells box e (rows of ``lo``, ``hi``) touches."""
     span = np.empty((lo.shape[0], 6), np.int64)
     for e in range(lo.shape[0]):
-        for k in range(3):
-            span[e, k] = np.int64((lo[e, k] - origin[k]) / cell)
-            span[e, 3 + k] = np.int64((hi[e, k] - origin[k]) / cell)
+        span[e, 0], span[e, 1], span[e, 2], span[e, 3], span[e, 4], span[e, 5] = \
+            _cell_span(lo, hi, e, cell, origin)
     return span
 
 
 @njit(cache=True)
-def _grid(span, active, rigid):
+def _grid(lo, hi, span, active, cell, origin, rigid):
     """The grid of the ``active`` boxes (with ``rigid`` those marked :data:`RIGID`, else the
-    others) over their cells ``span``: (keys, start, owners), the occupied cells' keys
-    ascending, cell u's boxes owners[start[u]:start[u + 1]], ascending within a cell (a
-    stable sort of the entries, made in the boxes' order)."""
-    big = np.int64(GRID_SPAN)
-    m = span.shape[0]
+    others) over their cells ``span`` (:func:`_cells`): (keys, start, owners), the occupied
+    cells' keys ascending, cell u's boxes owners[start[u]:start[u + 1]], ascending within a
+    cell (a stable sort of :func:`grid_entries`, made in the boxes' order)."""
     n = 0
-    for e in range(m):
+    for e in range(span.shape[0]):
         if active[e] and (active[e] == RIGID) == rigid:
             n += ((span[e, 3] - span[e, 0] + 1) * (span[e, 4] - span[e, 1] + 1)
                   * (span[e, 5] - span[e, 2] + 1))
-    keys = np.empty(n, np.int64)
-    owners = np.empty(n, np.int64)
-    n = 0
-    for e in range(m):
-        if not active[e] or (active[e] == RIGID) != rigid:
-            continue
-        for i in range(span[e, 0], span[e, 3] + 1):
-            for j in range(span[e, 1], span[e, 4] + 1):
-                for k in range(span[e, 2], span[e, 5] + 1):
-                    keys[n] = (i * big + j) * big + k
-                    owners[n] = e
-                    n += 1
+    keys, owners, _ = grid_entries(lo, hi, active, cell, origin, n, rigid)
     order = np.argsort(keys, kind="mergesort")
     keys, owners = keys[order], owners[order]
     cells = 0
@@ -186,7 +172,8 @@ def candidate_pairs(pos, elem_nodes, active, skin):
     # 3 where the division rounds up), the free elements' grid and the rigid ones'
     # (typed flags and counts: a literal would compile a callee once per value)
     span = _cells(lo, hi, cell, origin)
-    free, rigid = _grid(span, active, np.bool_(False)), _grid(span, active, np.bool_(True))
+    free = _grid(lo, hi, span, active, cell, origin, np.bool_(False))
+    rigid = _grid(lo, hi, span, active, cell, origin, np.bool_(True))
     zero = np.int64(0)
     # each element's partners of higher index, a run per cell, merged into ascending order:
     # the list comes out sorted by code e * m + f
