@@ -152,53 +152,43 @@ def dask_client(scheduler=None, workers=2):
 
 
 def _execute(sweep, out_dir, client, scheduler, workers, progress):
+    tasks = [{"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
+              "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
+             for run in sweep.runs]
+    # a small analytical sweep in this process, one run after another (each a fraction of
+    # a second: less than a cluster's start)
+    here = sweep.mode != "fe" and not client.worth(len(tasks))
+    log.info("sweep: %d %s runs %s", len(tasks), sweep.mode, "in this process" if here else
+             f"on {scheduler or f'a local Dask cluster of {workers} worker process(es)'}")
+    if sweep.mode == "fe" and len(tasks) > 1:  # one compile of the scene, not one each
+        warm(client, tasks[0], out_dir / "runs" / "_compile")
+    rows = [None] * len(tasks)
+    from spinweb_fe.run.progress import Stage, enabled
+
+    bar = enabled(progress)
+    done = ((i, run_one(task)) for i, task in enumerate(tasks)) if here else \
+        _on_cluster(client, sweep, tasks)
+    with Stage(f"{sweep.mode} runs", len(rows), show=bar) as stage:
+        for n, (i, row) in enumerate(done, start=1):
+            rows[i] = row
+            stage.update(note=f"{sweep.runs[i].name}: {row['status'][:30]}")
+            if progress and not bar:
+                log.info("[%d/%d] %s: %s (%.1f s)", n, len(rows), sweep.runs[i].name,
+                         row["status"], row.get("wall_time_s", math.nan))
+    return rows
+
+
+def _on_cluster(client, sweep, tasks):
+    """(index, row) of each task run on the cluster, as they finish."""
     from dask.distributed import as_completed
 
-    rows = [None] * len(sweep.runs)
-    log.info("sweep: %d %s runs on %s", len(sweep.runs), sweep.mode,
-             scheduler or f"a local Dask cluster of {workers} worker process(es)")
-    if sweep.mode == "fe" and len(sweep.runs) > 1:  # one compile of the scene, not one each
-        run = sweep.runs[0]
-        warm(client, {"raw": run.raw, "source": str(sweep.base), "mode": "fe",
-                      "model": sweep.model}, out_dir / "runs" / "_compile")
-    if sweep.mode != "fe" and not client.worth(len(sweep.runs)):
-        return _in_process(sweep, out_dir, rows, progress)
     futures = {}
-    for pos, run in enumerate(sweep.runs):  # (--only keeps some runs: by position)
-        task = {"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
-                "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)}
+    for pos, (run, task) in enumerate(zip(sweep.runs, tasks)):  # (--only keeps some runs)
         fut = client.submit(run_one, task, pure=False, key=f"spinweb-{run.name}-{id(task)}")
         futures[fut] = pos
-    from spinweb_fe.run.progress import Stage, enabled
-
-    bar = enabled(progress)
-    with Stage(f"{sweep.mode} runs", len(rows), show=bar) as stage:
-        for done, fut in enumerate(as_completed(futures), start=1):
-            i = futures[fut]
-            try:
-                rows[i] = fut.result()
-            except Exception as exc:  # the worker died or the task was lost
-                rows[i] = _failed(exc)
-            stage.update(note=f"{sweep.runs[i].name}: {rows[i]['status'][:30]}")
-            if progress and not bar:
-                log.info("[%d/%d] %s: %s (%.1f s)", done, len(rows), sweep.runs[i].name,
-                         rows[i]["status"], rows[i].get("wall_time_s", math.nan))
-    return rows
-
-
-
-def _in_process(sweep, out_dir, rows, progress):
-    """A small analytical sweep in this process, one run after another (each a fraction of
-    a second: less than a cluster's start)."""
-    from spinweb_fe.run.progress import Stage, enabled
-
-    bar = enabled(progress)
-    with Stage(f"{sweep.mode} runs", len(rows), show=bar) as stage:
-        for i, run in enumerate(sweep.runs):
-            rows[i] = run_one({"raw": run.raw, "source": str(sweep.base), "mode": sweep.mode,
-                               "model": sweep.model, "out_dir": str(out_dir / "runs" / run.name)})
-            stage.update(note=f"{run.name}: {rows[i]['status'][:30]}")
-            if progress and not bar:
-                log.info("[%d/%d] %s: %s (%.1f s)", i + 1, len(rows), run.name,
-                         rows[i]["status"], rows[i].get("wall_time_s", math.nan))
-    return rows
+    for fut in as_completed(futures):
+        try:
+            row = fut.result()
+        except Exception as exc:  # the worker died or the task was lost
+            row = _failed(exc)
+        yield futures[fut], row

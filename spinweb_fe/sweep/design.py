@@ -142,9 +142,10 @@ def evaluate(d: Design, values: dict, extra: dict | None = None) -> Point:
 
 class Evaluator:
     """Memoised :func:`evaluate` (the bisection and Brent revisit points); ``points`` in
-    the order evaluated. With a Dask ``client`` :meth:`many` solves its points in parallel
-    on the workers; ``stage`` (run.progress.Stage) counts the solves; ``counts`` per
-    ``phase`` (scan, bisection, Brent, differential evolution) for the final message."""
+    the order evaluated. With a ``client`` (sweep.cluster.LazyClient) :meth:`many` solves
+    its points in parallel on the workers when the batch is worth a cluster's start;
+    ``stage`` (run.progress.Stage) counts the solves; ``counts`` per ``phase`` (scan,
+    bisection, Brent, differential evolution) for the final message."""
 
     def __init__(self, d: Design, extra=None, client=None, stage=None):
         self.d, self.extra, self.client, self.stage = d, extra, client, stage
@@ -167,7 +168,7 @@ class Evaluator:
         """The points of ``batch`` (a list of value dicts), the new ones solved at once."""
         keys = [self._key(v) for v in batch]
         new = list({k: v for k, v in zip(keys, batch) if k not in self._seen}.items())
-        if new and self.client is not None and _worth(self.client, len(new)):
+        if new and self.client is not None and self.client.worth(len(new)):
             futs = self.client.map(evaluate, [self.d] * len(new), [v for _, v in new],
                                    [self.extra] * len(new), pure=False)
             for (k, _), fut in zip(new, futs):
@@ -176,13 +177,6 @@ class Evaluator:
             for k, v in new:
                 self._add(k, evaluate(self.d, v, self.extra))
         return [self._seen[k] for k in keys]
-
-
-def _worth(client, n: int) -> bool:
-    """Whether ``n`` solves go to the client's workers (sweep.cluster.LazyClient.worth: a
-    batch too small to pay a cluster's start runs here); a plain Dask client: any batch."""
-    worth = getattr(client, "worth", None)
-    return worth(n) if worth is not None else n > 1
 
 
 # -- the search ---------------------------------------------------------------------------
