@@ -665,6 +665,10 @@ MUTANTS = (
     Mutant("trial_kernel_shares_arrays", "spinweb_fe/record/feature.py",
            "            return v.copy()\n", "            return v\n",
            "a feature's trial kernel shares its arrays with the run's", G_REST),
+    Mutant("rate_timed_on_the_runs_features", "spinweb_fe/run/loop.py",
+           "own = copy.deepcopy(features, {id(model): model})", "own = features",
+           "the estimate's timed steps serve the run's own features (its list rebuilt "
+           "ahead of the run)", ("tests/test_estimate.py",)),
     Mutant("cells_keep_the_outer_face", "spinweb_fe/record/linking.py",
            "cycles = [tail[w] for w, a in zip(walks, area) if a > area_tol]",
            "cycles = [tail[w] for w, a in zip(walks, area) if abs(a) > area_tol]",

@@ -4,6 +4,7 @@ only at event boundaries (history rows, frames, checkpoints, the end). Writes no
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import time
@@ -360,19 +361,22 @@ def time_steps(model: Model, control: Control, state: State, dt: float, threads:
                rec_every: int, nsteps: int, features=None) -> tuple:
     """(compile or cache-load time [s], wall time [s] of the steps, the steps run) of the
     step loop with its ``features`` (None: the model's) on a copy of ``state`` (``nsteps``
-    give at most ROWS_PER_CHUNK rows; fewer steps run when a feature stops the loop for
-    its service, which a copy does not get)."""
+    give at most ROWS_PER_CHUNK rows; fewer steps run only where the loop stops the run)."""
     features = features_of(model, state) if features is None else list(features)
     choose_threads(model, threads)
-    chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), rec_every,
-                     threads, dt, records_vectors(model, state), features)
     trial = state.copy()
     for f in features:
         f.prepare(state, ROWS_PER_CHUNK + 1)
-    hooks = chunks.hooks(trial=True)
+    # the steps run on copies of the features (the model shared), which serve the loop's
+    # stops on the trial state as the run's serve them on its own (a stale list rebuilt):
+    # the rate counts the rebuilds, and nothing of the trial reaches the run
+    own = copy.deepcopy(features, {id(model): model})
+    chunks = _Chunks(model, control, ArmTracker(model.mesh, model.hub.radius), rec_every,
+                     threads, dt, records_vectors(model, state), own)
+    hooks = chunks.hooks()
     t0 = time.perf_counter()
     with compile_helper(chunks, trial, dt, hooks):  # a cold start on two cores
         chunks.call(trial, dt, 0, hooks)
     t1 = time.perf_counter()
-    chunks.call(trial, dt, nsteps, hooks)
+    chunks.run(trial, dt, nsteps)
     return t1 - t0, time.perf_counter() - t1, int(trial.step[0] - state.step[0])
