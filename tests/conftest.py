@@ -14,7 +14,11 @@ Tests marked ``fresh_compile`` (a cold compile into a numba cache of their own, 
 18 s, whatever ran before: one in make test, tests/test_warmup.py) are collected first: pytest-xdist's worksteal gives each worker
 a contiguous share of the list and the idle one steals from the other's end, so a long test
 at the end of a share leaves the other core idle (two of them ran last on one worker, the
-other idle for 26 s of a 283 s suite)."""
+other idle for 26 s of a 283 s suite).
+
+Each worker's BLAS (numpy's OpenBLAS) runs on one thread: two threads a worker on two cores
+spin while the other worker holds the core (a warm suite spent about 24 s more CPU).
+The workers import this file before numpy, so the setting holds there."""
 
 import os
 import signal
@@ -23,6 +27,10 @@ import pytest
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("SPINWEB_COMPILE_HELPER", "0")
+    # one BLAS thread a worker (read when numpy loads OpenBLAS, after this file): with two
+    # workers on two cores, OpenBLAS's second thread spins waiting for a core the other
+    # worker holds (the prestress tests' SVD took 6.4 and 5.6 s of CPU, 0.2 s alone)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 @pytest.fixture(autouse=True)
