@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from spinweb_fe.fe.contact.penalty import KAPPA, contact_forces
-from spinweb_fe.fe.contact.crossing import pair_crossings
+from support import loop_crossings
 
 PAIR = np.array([[0, 1]], np.int64)
 ELEMS = np.array([[0, 1], [2, 3]], np.int64)
@@ -105,7 +105,7 @@ def impact(speed, radius, dt=1e-5, steps=None):
     crossed, worst = 0, 0.0
     for _ in range(steps):
         new = pos + dt * vel
-        crossed += pair_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],
+        crossed += loop_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],
                                   new[3], times, signs)
         pos = new
         e_c, _, _ = contact_forces(PAIR, ELEMS, pos, inv_mass, reach, radius, KAPPA, dt, f,
@@ -169,7 +169,7 @@ def test_the_fail_safe_never_lets_a_bar_through(speed, angle):
                                            0.1 * radius, (20, ZONE_ROUNDS), None)
         taken_all += taken
         assert left == 0
-        crossed += pair_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],
+        crossed += loop_crossings(pos[0], new[0], pos[1], new[1], pos[2], new[2], pos[3],
                                   new[3], times, signs)
         pos = new
     assert crossed == 0
@@ -268,7 +268,7 @@ def test_a_pass_after_the_hub_placed_its_nodes_again_tests_their_pairs():
 
     def crossed(e, g):
         (a, b), (c, d) = elems[e], elems[g]
-        return pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+        return loop_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
                               pos1[d], times, signs)
     assert impulses == 1 and left == 0 and ck.stats[AGAIN] == 1
     assert crossed(0, 1) == 0 and crossed(2, 3) == 1

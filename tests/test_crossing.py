@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from spinweb_fe.fe.contact.broad import RIGID, candidate_pairs, carried, sift_pairs
-from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
+from spinweb_fe.fe.contact.crossing import step_crossings
 from spinweb_fe.fe.contact.distance import segment_distance
+from support import loop_crossings
 
 DT = 4.6e-5  # the paper web's step at cfl 0.2 [s]
 
@@ -36,7 +37,7 @@ def passing(speed, angle, offset, z0, steps, R=np.eye(3), shift=np.zeros(3)):
         c0, d0 = centre - u + [0, 0, z_a], centre + u + [0, 0, z_a]
         c1, d1 = centre - u + [0, 0, z_b], centre + u + [0, 0, z_b]
         pts = [R @ p + shift for p in (A, A, B, B, c0, c1, d0, d1)]
-        k = pair_crossings(*pts, times, signs)
+        k = loop_crossings(*pts, times, signs)
         out += [(n + times[i], int(signs[i])) for i in range(k)]
     return out
 
@@ -106,7 +107,7 @@ def test_against_dense_sampling_including_two_crossings_in_one_step():
     for _ in range(400):
         p = rng.uniform(-1, 1, size=(4, 3))
         q = p + rng.uniform(-3, 3, size=(4, 3))
-        k = pair_crossings(p[0], q[0], p[1], q[1], p[2], q[2], p[3], q[3], times, signs)
+        k = loop_crossings(p[0], q[0], p[1], q[1], p[2], q[2], p[3], q[3], times, signs)
         ref = dense_crossings(p[0], q[0], p[1], q[1], p[2], q[2], p[3], q[3])
         assert k == len(ref)
         for i in range(k):

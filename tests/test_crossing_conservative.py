@@ -8,7 +8,8 @@ separation apart are never counted."""
 import numpy as np
 import pytest
 
-from spinweb_fe.fe.contact.crossing import SEP, pair_crossings
+from spinweb_fe.fe.contact.crossing import SEP
+from support import loop_crossings
 
 SCALES = (1e-3, 1e-1, 1.0, 1e1, 1e3)
 
@@ -31,7 +32,7 @@ def count(pts, scale, sep_factor=1.0):
     with the run's separation: SEP times the largest coordinate."""
     sep = SEP * max(np.abs(p).max() for p in pts) * sep_factor
     times, signs = np.empty(3), np.empty(3, np.int64)
-    return pair_crossings(*pts, times, signs, None, None, sep)
+    return loop_crossings(*pts, times, signs, sep)
 
 
 @pytest.mark.parametrize("scale", SCALES)
@@ -123,5 +124,5 @@ def test_the_exact_test_without_a_separation_misses_them():
                                         [0.3, 0, 0.5], [0.3, 0, -0.5], [1.3, 0, 0.5],
                                         [1.3, 0, -0.5])]
     times, signs = np.empty(3), np.empty(3, np.int64)
-    assert pair_crossings(*pts, times, signs) == 0
+    assert loop_crossings(*pts, times, signs) == 0
     assert count(pts, 1.0) == 1

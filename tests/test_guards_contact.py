@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from spinweb_fe.fe.contact.bounds import no_motion, step_motion
-from spinweb_fe.fe.contact.crossing import SEP, pair_crossings
+from spinweb_fe.fe.contact.crossing import SEP
+from support import loop_crossings
 
 
 def _count(ab, cd, sep):
@@ -19,7 +20,7 @@ def _count(ab, cd, sep):
     start and end of the step)."""
     times, signs = np.empty(3), np.empty(3, np.int64)
     (a, b), (c, d) = ab, cd
-    return pair_crossings(a, a, b, b, c[0], c[1], d[0], d[1], times, signs, None, None, sep)
+    return loop_crossings(a, a, b, b, c[0], c[1], d[0], d[1], times, signs, sep)
 
 
 @pytest.mark.parametrize("sep", [0.0, SEP * 2.0])

@@ -12,8 +12,8 @@ import pytest
 
 from spinweb_fe.fe.contact.failsafe import resolve_crossings
 from spinweb_fe.fe.contact.penalty import MARGIN
-from spinweb_fe.fe.contact.crossing import pair_crossings
 from spinweb_fe.fe.contact.zones import ZONE_ROUNDS, impact_zones
+from support import loop_crossings
 
 DT = 1e-3
 LAYERS = 5
@@ -44,7 +44,7 @@ def crossings(pairs, elems, pos0, pos1):
     for e, g in pairs:
         a, b = elems[e]
         c, d = elems[g]
-        n += pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+        n += loop_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
                             pos1[d], times, signs)
     return n
 

@@ -13,9 +13,10 @@ from numpy.polynomial.legendre import leggauss
 
 from meshgen.build import flat_web
 from meshgen.mesh import Mesh
-from spinweb_fe.fe.contact.crossing import pair_crossings, step_crossings
+from spinweb_fe.fe.contact.crossing import step_crossings
 from spinweb_fe.record.linking import (box_pairs, cell_loops, linked_pairs, linking_number,
                                        loops_from, segment_linking)
+from support import loop_crossings
 
 
 def rot(axis, angle):
@@ -171,7 +172,7 @@ def all_crossings(P0, P1, Q0, Q1):
         a, b = i, (i + 1) % n
         for j in range(m):
             c, d = j, (j + 1) % m
-            k = pair_crossings(P0[a], P1[a], P0[b], P1[b], Q0[c], Q1[c], Q0[d], Q1[d],
+            k = loop_crossings(P0[a], P1[a], P0[b], P1[b], Q0[c], Q1[c], Q0[d], Q1[d],
                                times, signs)
             out += [(i, j, int(signs[r])) for r in range(k)]
     return out
@@ -218,7 +219,7 @@ def test_pushing_a_segment_through_a_loop_changes_lk_by_the_crossing_sign(x_from
         assert abs(after - before - s) < 1e-9
         # the element stored the other way round (0 -> 3): the detector's sign flips
         times, signs = np.empty(3), np.empty(3, np.int64)
-        k = pair_crossings(a0[0], a1[0], a0[3], a1[3], b[1], b[1], b[2], b[2], times, signs)
+        k = loop_crossings(a0[0], a1[0], a0[3], a1[3], b[1], b[1], b[2], b[2], times, signs)
         assert k == 1 and signs[0] == -s
     # the geometry's own answer: A's side goes down through B's inside, so Lk = -1 there
     assert round(linking_number(A1 if x_to < 1 else A0, B)) == -1
@@ -275,11 +276,11 @@ def test_one_crossing_of_two_web_elements_changes_four_cell_pairs():
     assert loops.n_loops == 4 and all(len(loops.loop(i)) == 4 for i in range(4))
     e, f = (2, 3), (7, 10)
     times, signs = np.empty(3), np.empty(3, np.int64)
-    p0 = mesh.node_pos
+    p0 = mesh.node_pos.copy()  # (writable, as the loop's: the kernels' compile is shared)
     found = []
     for g, (a, b) in enumerate(mesh.elem_nodes[:7]):
         for h, (c, d) in enumerate(mesh.elem_nodes[7:]):
-            k = pair_crossings(p0[a], pos1[a], p0[b], pos1[b], p0[c], pos1[c], p0[d],
+            k = loop_crossings(p0[a], pos1[a], p0[b], pos1[b], p0[c], pos1[c], p0[d],
                                pos1[d], times, signs)
             found += [((a, b), (c, d), int(signs[r])) for r in range(k)]
     assert len(found) == 1 and found[0][:2] == (e, f)
@@ -338,7 +339,8 @@ def test_a_flat_web_links_nothing_nor_does_it_ruffled_or_rolled_up():
     res = linked_pairs(mesh.node_pos, loops)
     assert res.links.shape == (0, 3) and res.candidates == 0 and res.worst == 0.0
     rng = np.random.default_rng(3)
-    ref, elems = mesh.node_ref, mesh.elem_nodes
+    # (writable copies, as the loop's arrays: the crossing kernels' compile is shared)
+    ref, elems = mesh.node_ref.copy(), mesh.elem_nodes.copy()
     ruffled = ref + rng.uniform(-0.5, 0.5, size=ref.shape)
     mid = ref[elems].mean(axis=1)
     e, f = np.nonzero(np.triu(np.linalg.norm(mid[:, None] - mid[None], axis=-1) < 4.0, 1))

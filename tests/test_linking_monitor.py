@@ -17,11 +17,11 @@ from test_linking import along, two_strips
 from spinweb_fe import case as case_mod
 from spinweb_fe.cli import main
 from spinweb_fe.cli.info import summary
-from spinweb_fe.fe.contact.crossing import pair_crossings
 from spinweb_fe.record.linking_check import LinkingMonitor
 from spinweb_fe.record.recorders import Frame, RunInfo
 from spinweb_fe.run.driver import run_case
 from spinweb_fe.run.restart import restart_case
+from support import loop_crossings
 
 DT = 0.01
 E, F = (2, 3), (7, 10)  # two_strips: e of the upright web W1, f of the flat W2
@@ -41,7 +41,7 @@ def predicted(mesh, pos0, pos1):
     s eps_e(P) eps_f(Q), s the detector's sign for e and f as stored (test_linking.py)."""
     times, signs = np.empty(3), np.empty(3, np.int64)
     (a, b), (c, d) = E, F
-    assert pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
+    assert loop_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
                           pos1[d], times, signs) == 1
     mon = LinkingMonitor(mesh)
     loops = mon.loops

@@ -417,5 +417,6 @@ def moved_crosses(pos0, pos1, moved, a, b, c, d, times, signs, scratch, cuts):
     first, then the exact test; ``times``, ``signs`` as :func:`pair_crossings` fills them)."""
     if not (moved[a] or moved[b] or moved[c] or moved[d]) or apart(pos0, pos1, a, b, c, d):
         return False
+    # (sep given, 0.0 as its default: the form of the loop's other calls, one compile)
     return pair_crossings(pos0[a], pos1[a], pos0[b], pos1[b], pos0[c], pos1[c], pos0[d],
-                          pos1[d], times, signs, scratch, cuts) > 0
+                          pos1[d], times, signs, scratch, cuts, 0.0) > 0
