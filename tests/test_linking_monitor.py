@@ -60,7 +60,7 @@ def test_a_crossing_changes_the_cell_pairs_its_sign_rule_predicts():
     (each by the sign rule's +-1), none while nothing moves, 4 back; the first change at
     the second frame, none net."""
     mesh, pos1 = two_strips()
-    pos0 = mesh.node_pos
+    pos0 = mesh.node_pos.copy()  # (writable, as a run's frames: the kernels' compile shared)
     want = predicted(mesh, pos0, pos1)
     assert sorted(want.values()) == [-1, -1, 1, 1]
     mon = watched(mesh, [pos0, pos1, pos1, pos0])
@@ -99,7 +99,7 @@ def test_cells_that_lose_an_element_leave_the_check_without_a_change():
     with it (no change counted); e through f then changes only the pairs of W2's other
     cell. e breaking takes both cells of W1 out: nothing is linked."""
     mesh, pos1 = two_strips()
-    pos0 = mesh.node_pos
+    pos0 = mesh.node_pos.copy()
     gone = np.zeros(len(mesh.elem_nodes), bool)
     gone[7] = True
     mon = LinkingMonitor(mesh)
@@ -126,7 +126,7 @@ def test_the_start_the_frames_and_the_end_each_once_and_a_checkpoint_continues(t
     the end (and its frame not again). A monitor stopped at a checkpoint (memory through
     an HDF5 file as the checkpoint writes it) and continued gives the same checks."""
     mesh, pos1 = two_strips()
-    pos0 = mesh.node_pos
+    pos0 = mesh.node_pos.copy()
     path = [pos0, pos1, pos1, pos0, pos1]
 
     def state(k):
