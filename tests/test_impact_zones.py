@@ -12,7 +12,7 @@ import pytest
 
 from spinweb_fe.fe.contact.failsafe import resolve_crossings
 from spinweb_fe.fe.contact.penalty import MARGIN
-from spinweb_fe.fe.contact.zones import ZONE_ROUNDS, impact_zones
+from spinweb_fe.fe.contact.zones import ZONE_ROUNDS, impact_zones, pair_adjacency
 from support import loop_crossings
 
 DT = 1e-3
@@ -134,6 +134,17 @@ def test_after_the_zones_no_pair_crosses():
     assert np.allclose(pos1, pos0 + DT * vel, rtol=0, atol=1e-15)
 
 
+def zones_as_the_fail_safe_calls_them(pairs, elems, pos0, pos1, vel, inv_mass, hub=None):
+    """fe.contact.zones.impact_zones with the arguments in the forms the fail-safe passes
+    them (the rounds an int64, every node moved, the list's adjacency, the marks of the
+    nodes that follow the hub), the same as their defaults: the tests share the
+    fail-safe's compile of it instead of one of their own for each form."""
+    n = len(pos0)
+    follow = None if hub is None else np.zeros(n, np.bool_)
+    return impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT, np.int64(ZONE_ROUNDS),
+                        hub, np.ones(n, np.bool_), pair_adjacency(pairs, elems, n), follow)
+
+
 def test_a_zone_moves_rigidly_and_keeps_the_momenta():
     """The zones called directly on the column: one zone of every bar, whose velocities
     are one rigid motion V + w x (x - X) (the difference of any two nodes' velocities is
@@ -141,7 +152,7 @@ def test_a_zone_moves_rigidly_and_keeps_the_momenta():
     angular momentum of the start to 1e-12, and no crossing left."""
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     P0, L0 = momenta(pos1, vel, inv_mass)
-    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT)
+    zones, left = zones_as_the_fail_safe_calls_them(pairs, elems, pos0, pos1, vel, inv_mass)
     assert (zones, left) == (1, 0)
     assert crossings(pairs, elems, pos0, pos1) == 0
     for i, j in itertools.combinations(range(2 * LAYERS), 2):
@@ -159,7 +170,7 @@ def test_a_zone_with_a_held_node_is_left_without_the_hubs_motion():
     pairs, elems, pos0, pos1, vel, inv_mass = column()
     inv_mass[0] = 0.0
     before = vel.copy()
-    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT)
+    zones, left = zones_as_the_fail_safe_calls_them(pairs, elems, pos0, pos1, vel, inv_mass)
     assert zones <= 0 and left > 0
     assert np.array_equal(vel, before)
 
@@ -191,7 +202,8 @@ def test_a_zone_with_a_held_node_moves_with_the_hub():
     inv_mass[[0, 1]] = 0.0
     pos1[[0, 1]] = pos0[[0, 1]] @ hub[:3].T
     vel[[0, 1]] = (pos1[[0, 1]] - pos0[[0, 1]]) / DT
-    zones, left = impact_zones(pairs, elems, pos0, pos1, vel, inv_mass, DT, hub=hub)
+    zones, left = zones_as_the_fail_safe_calls_them(pairs, elems, pos0, pos1, vel, inv_mass,
+                                                    hub)
     assert zones >= 1 and left == 0
     assert crossings(pairs, elems, pos0, pos1) == 0
     moved = np.abs(vel).sum(1) > 0  # the zone's nodes (the others rest)
