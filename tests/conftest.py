@@ -17,8 +17,9 @@ at the end of a share leaves the other core idle (two of them ran last on one wo
 other idle for 26 s of a 283 s suite).
 
 Each worker's BLAS (numpy's OpenBLAS) runs on one thread: two threads a worker on two cores
-spin while the other worker holds the core (a warm suite spent about 24 s more CPU).
-The workers import this file before numpy, so the setting holds there."""
+spin while the other worker holds the core (the prestress tests' SVD took 6.4 and 5.6 s of
+CPU in the suite, 0.2 s each alone; a warm suite about 24 s more in all). OpenBLAS reads
+the setting when numpy loads, and the workers import this file before numpy."""
 
 import os
 import signal
@@ -27,10 +28,7 @@ import pytest
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("SPINWEB_COMPILE_HELPER", "0")
-    # one BLAS thread a worker (read when numpy loads OpenBLAS, after this file): with two
-    # workers on two cores, OpenBLAS's second thread spins waiting for a core the other
-    # worker holds (the prestress tests' SVD took 6.4 and 5.6 s of CPU, 0.2 s alone)
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # (the module's text)
 
 
 @pytest.fixture(autouse=True)

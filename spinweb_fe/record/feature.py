@@ -12,7 +12,9 @@ at event boundaries only,
   ``hooks``), or None when it has none (its data is then in the Model's kernel view, where
   numba prunes it by type, as the strength check, the devices and the bundles are);
 - ``trial(kernel, hooks)``: a copy of that kernel for a step run on a copy of the state (the
-  last row at t_end, a measured rate): what such a step changes must not reach the run;
+  loop's first compile call, the last row at t_end): what such a step changes must not
+  reach the run (the estimate's timed steps, which must also serve the loop's stops, run
+  on deep copies of the features instead: run.loop.time_steps);
 - ``columns(kernel, rec, nrec)``: its history columns of the rows the call recorded, named by
   a table of :mod:`spinweb_fe.fe.layout` (:attr:`Feature.layout`);
 - ``service(state)``: after every call of the step loop, which stops early (status
